@@ -1,0 +1,33 @@
+# jointctl: two commands.
+#   make demo   create .venv, install, run the chapter's experiments into out/demo/
+#   make test   create .venv, install with test extras, run the test suite
+#   make bench  run the speed and memory benchmarks, printing ratios to a bare MuJoCo loop
+#
+# The virtual environment is made from Debian's /usr/bin/python3 with access to its
+# system packages, so the ROS 1 packages Debian ships (rospy, actionlib) import beside
+# the pinned pip dependencies. Set PYTHON to use another interpreter.
+
+PYTHON ?= $(shell test -x /usr/bin/python3 && echo /usr/bin/python3 || command -v python3)
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+OUT    ?= out/demo
+
+.PHONY: demo test bench venv clean
+
+$(VENV)/.installed: pyproject.toml scripts/bootstrap.sh
+	PYTHON=$(PYTHON) VENV=$(VENV) bash scripts/bootstrap.sh
+	touch $@
+
+venv: $(VENV)/.installed
+
+demo: venv
+	$(VENV)/bin/jointctl demo --out $(OUT)
+
+test: venv
+	$(PY) -m pytest -q
+
+bench: venv
+	$(PY) benchmarks/run.py
+
+clean:
+	rm -rf $(VENV) out

@@ -1,0 +1,95 @@
+"""One exception hierarchy for jointctl.
+
+Every error a user can cause is a :class:`JointCtlError`. Each carries the
+place it comes from (``source``: a file path or a command name), the
+``field`` inside it (a dotted path such as
+``one_DOF_robot.joint1_position_controller.pid.p``) and the offending
+``value``, so the command-line interface can print one clear line and exit
+with status 2 instead of a traceback.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+_UNSET = object()
+
+
+class JointCtlError(Exception):
+    """Base class of every error jointctl raises on bad input or bad state.
+
+    ``code`` is a short machine-readable identifier (``"config"``,
+    ``"model"``, ``"expression"``...); subclasses set a default.
+    """
+
+    code: str = "error"
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        source: str | None = None,
+        field: str | None = None,
+        value: Any = _UNSET,
+        code: str | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.message = message
+        self.source = source
+        self.field = field
+        self.value = value
+        if code is not None:
+            self.code = code
+
+    @property
+    def has_value(self) -> bool:
+        return self.value is not _UNSET
+
+    def __str__(self) -> str:
+        parts = []
+        if self.source:
+            parts.append(str(self.source))
+        if self.field:
+            parts.append(self.field)
+        where = ": ".join(parts)
+        text = self.message
+        if self.has_value:
+            text = f"{text} (got {_short_repr(self.value)})"
+        return f"{where}: {text}" if where else text
+
+
+class ConfigError(JointCtlError):
+    """A configuration file (controller YAML, scenario YAML) is missing or malformed."""
+
+    code = "config"
+
+
+class ModelError(JointCtlError):
+    """A robot description (URDF / xacro) is missing, malformed or unsupported."""
+
+    code = "model"
+
+
+class ExpressionError(JointCtlError):
+    """A command expression is malformed, unsafe or cannot be evaluated."""
+
+    code = "expression"
+
+
+class InvalidCommand(JointCtlError):
+    """A command handed to a running controller was refused (not finite, unknown joint...)."""
+
+    code = "command"
+
+
+class ControllerError(JointCtlError):
+    """Controllers cannot be loaded or started as asked (unknown type, conflicting claims...)."""
+
+    code = "controller"
+
+
+def _short_repr(value: Any, limit: int = 80) -> str:
+    text = repr(value)
+    if len(text) > limit:
+        text = text[: limit - 3] + "..."
+    return text
