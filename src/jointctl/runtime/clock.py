@@ -1,0 +1,54 @@
+"""Clocks for the loop: simulated time (as fast as possible) or wall-clock pacing.
+
+Loop time is always ``cycle * period``: the clock only decides whether the
+loop waits for the wall clock before starting the next cycle. Simulated time
+makes runs deterministic and as fast as the machine allows.
+"""
+
+from __future__ import annotations
+
+import time
+
+
+class SimulatedClock:
+    """Never waits: simulated time runs as fast as the computer can step it."""
+
+    realtime = False
+    overruns = 0
+
+    def start(self) -> None:
+        pass
+
+    def wait_for(self, loop_time_s: float) -> None:
+        pass
+
+
+class WallClockPacer:
+    """Waits so loop time advances at ``speed`` times the wall clock (1.0: real time).
+
+    A cycle that finishes late is an *overrun*: the pacer does not wait and
+    does not try to catch up faster than the loop can run; ``overruns`` counts them.
+    """
+
+    realtime = True
+
+    def __init__(self, speed: float = 1.0) -> None:
+        if not speed > 0:
+            raise ValueError(f"speed must be positive, got {speed}")
+        self.speed = speed
+        self.overruns = 0
+        self._origin = 0.0
+
+    def start(self) -> None:
+        self._origin = time.perf_counter()
+
+    def wait_for(self, loop_time_s: float) -> None:
+        deadline = self._origin + loop_time_s / self.speed
+        remaining = deadline - time.perf_counter()
+        if remaining < 0:
+            self.overruns += 1
+            return
+        if remaining > 0.002:
+            time.sleep(remaining - 0.001)
+        while time.perf_counter() < deadline:
+            pass

@@ -1,0 +1,283 @@
+"""Read and validate a scenario file.
+
+A scenario names what to run and for how long; jointctl's additions to the
+robot's own files (gravity, initial positions, loop rate, command sources)
+live here::
+
+    name: one_dof_step
+    robot: one_dof                  # a folder under robots/, or a robot.yaml / .xacro / .urdf path
+    controller_file: position       # a key of the robot's robot.yaml, or a YAML path
+    controllers:                    # optional overrides of the controller file's values
+      joint1_position_controller: {pid: {p: 800}}
+    start_controllers: [joint_state_controller, joint1_position_controller]
+    gravity: -9.81                  # m/s² along z, or [gx, gy, gz]
+    timestep_s: 0.001               # physics step; the loop runs at loop_rate_hz (default 1/timestep)
+    initial_positions: {joint1: -0.2}
+    duration_s: 3.0
+    commands:
+      joint1_position_controller: {type: step, from: -0.2, to: -0.5, at: 0.5}
+    record: {every: 1}
+    analysis: {type: step_response, joint: joint1}
+
+``--set key=value`` overrides any field before validation (``value`` is read
+as YAML: ``--set gravity=-5``, ``--set controllers.joint1_position_controller.pid.p=800``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from jointctl.control.manager import read_yaml, set_dotted
+from jointctl.errors import ConfigError
+from jointctl.paths import robots_dir, scenarios_dir
+
+_KEYS = {
+    "name", "description", "robot", "controller_file", "controllers", "start_controllers",
+    "gravity", "timestep_s", "loop_rate_hz", "floor", "initial_positions", "duration_s",
+    "commands", "record", "analysis",
+}
+_DESCRIPTION_SUFFIXES = (".xacro", ".urdf")
+
+
+@dataclass(frozen=True)
+class RobotFiles:
+    """Where a robot's description and controller files are."""
+
+    name: str
+    description: Path
+    controller_files: dict[str, Path]
+    folder: Path
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario. Paths are absolute; numbers SI."""
+
+    name: str
+    source: str
+    robot: RobotFiles
+    controller_file: Path
+    controller_overrides: dict[str, Any]
+    start_controllers: tuple[str, ...]
+    gravity_m_s2: tuple[float, float, float]
+    timestep_s: float
+    loop_period_s: float
+    floor: bool
+    initial_positions: dict[str, float]
+    duration_s: float
+    commands: dict[str, dict[str, Any]]
+    record_every: int
+    analysis: dict[str, Any] | None
+    description: str = ""
+    raw: dict[str, Any] = field(default_factory=dict, repr=False)
+
+
+def builtin_scenarios() -> dict[str, Path]:
+    """Built-in scenario names and their files."""
+    return {p.stem: p for p in sorted(scenarios_dir().glob("*.yaml"))}
+
+
+def builtin_robots() -> dict[str, Path]:
+    """Built-in robot names and their folders."""
+    return {p.parent.name: p.parent for p in sorted(robots_dir().glob("*/robot.yaml"))}
+
+
+def load_scenario(name_or_path: str | Path, overrides: Iterable[str] = ()) -> Scenario:
+    """Load a built-in scenario by name, or a scenario file, applying ``--set`` overrides."""
+    path = Path(name_or_path)
+    if not path.suffix and str(name_or_path) in builtin_scenarios():
+        path = builtin_scenarios()[str(name_or_path)]
+    elif not path.is_file():
+        known = ", ".join(builtin_scenarios())
+        raise ConfigError(f"no such scenario file or built-in scenario (built-in: {known})",
+                          source=str(name_or_path))
+    source = str(path)
+    raw = read_yaml(path)
+    if not isinstance(raw, dict):
+        raise ConfigError("a scenario must be a mapping of fields", source=source, value=raw)
+    for item in overrides:
+        key, value = parse_override(item)
+        set_dotted(raw, key, value, source="--set")
+    return _Validator(raw, source, path.parent).scenario()
+
+
+def parse_override(item: str) -> tuple[str, Any]:
+    """``"a.b=1.5"`` -> ``("a.b", 1.5)``; the value is read as YAML."""
+    key, sep, text = item.partition("=")
+    key = key.strip()
+    if not sep or not key or any(not part for part in key.split(".")):
+        raise ConfigError("expected KEY=VALUE with a dotted KEY", source="--set", value=item)
+    try:
+        value = yaml.safe_load(text) if text.strip() else ""
+    except yaml.YAMLError:
+        raise ConfigError("the value is not valid YAML", source="--set", field=key, value=text) from None
+    return key, value
+
+
+def flatten(mapping: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` -> ``{"a.b": 1}``."""
+    flat: dict[str, Any] = {}
+    for key, value in mapping.items():
+        dotted = f"{prefix}.{key}" if prefix else str(key)
+        if isinstance(value, Mapping) and value:
+            flat.update(flatten(value, dotted))
+        else:
+            flat[dotted] = value
+    return flat
+
+
+class _Validator:
+    def __init__(self, raw: dict[str, Any], source: str, base: Path) -> None:
+        self.raw = raw
+        self.source = source
+        self.base = base
+
+    def error(self, message: str, field: str, value: Any = None, *, with_value: bool = True):
+        if with_value:
+            return ConfigError(message, source=self.source, field=field, value=value)
+        return ConfigError(message, source=self.source, field=field)
+
+    def number(self, key: str, default: Any = None, *, positive: bool = False) -> float:
+        value = self.raw.get(key, default)
+        if value is None:
+            raise self.error("is required", key, with_value=False)
+        return self.check_number(value, key, positive=positive)
+
+    def check_number(self, value: Any, field: str, *, positive: bool = False) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.error("must be a number", field, value)
+        if not math.isfinite(value):
+            raise self.error("must be finite", field, value)
+        if positive and value <= 0:
+            raise self.error("must be positive", field, value)
+        return float(value)
+
+    def mapping(self, key: str) -> dict[str, Any]:
+        value = self.raw.get(key) or {}
+        if not isinstance(value, dict):
+            raise self.error("must be a mapping", key, value)
+        return value
+
+    def scenario(self) -> Scenario:
+        raw = self.raw
+        for key in raw:
+            if key not in _KEYS:
+                raise self.error(f"unknown field (known: {', '.join(sorted(_KEYS))})", str(key), raw[key])
+        robot = self.robot_files(raw.get("robot"))
+        controller_file = self.controller_file(robot)
+        overrides = self.mapping("controllers")
+        start = raw.get("start_controllers")
+        if not isinstance(start, list) or not start or not all(isinstance(s, str) for s in start):
+            raise self.error("must be a non-empty list of controller names", "start_controllers", start)
+        timestep = self.number("timestep_s", 0.001, positive=True)
+        rate = self.number("loop_rate_hz", 1.0 / timestep, positive=True)
+        period = 1.0 / rate
+        steps = round(period / timestep)
+        if steps < 1 or abs(steps * timestep - period) > 1e-9:
+            raise self.error(f"the loop period must be a whole number of physics steps of {timestep} s",
+                             "loop_rate_hz", rate)
+        floor = raw.get("floor", True)
+        if not isinstance(floor, bool):
+            raise self.error("must be true or false", "floor", floor)
+        initial = self.mapping("initial_positions")
+        for joint, value in initial.items():
+            self.check_number(value, f"initial_positions.{joint}")
+        commands = self.mapping("commands")
+        for name, cfg in commands.items():
+            if name not in start:
+                raise self.error("commands a controller that is not started", f"commands.{name}", name)
+            if not isinstance(cfg, dict):
+                raise self.error("must be a mapping describing a command source", f"commands.{name}", cfg)
+        record = self.mapping("record")
+        every = record.get("every", 1)
+        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            raise self.error("must be a whole number of at least 1", "record.every", every)
+        analysis = raw.get("analysis")
+        if analysis is not None and not (isinstance(analysis, dict) and isinstance(analysis.get("type"), str)):
+            raise self.error("must be a mapping with a 'type'", "analysis", analysis)
+        name = raw.get("name") or Path(self.source).stem
+        return Scenario(
+            name=str(name),
+            source=self.source,
+            robot=robot,
+            controller_file=controller_file,
+            controller_overrides=flatten(overrides),
+            start_controllers=tuple(start),
+            gravity_m_s2=self.gravity(raw.get("gravity", -9.81)),
+            timestep_s=timestep,
+            loop_period_s=steps * timestep,
+            floor=floor,
+            initial_positions=dict(initial),
+            duration_s=self.number("duration_s", positive=True),
+            commands=commands,
+            record_every=every,
+            analysis=analysis,
+            description=str(raw.get("description", "")).strip(),
+            raw=raw,
+        )
+
+    def gravity(self, value: Any) -> tuple[float, float, float]:
+        if isinstance(value, list):
+            if len(value) != 3:
+                raise self.error("must be a number (z) or a list of three numbers", "gravity", value)
+            return tuple(self.check_number(v, f"gravity[{k}]") for k, v in enumerate(value))
+        return (0.0, 0.0, self.check_number(value, "gravity"))
+
+    def robot_files(self, ref: Any) -> RobotFiles:
+        if not isinstance(ref, str) or not ref:
+            raise self.error("must name a built-in robot or a robot file", "robot", ref)
+        robots = builtin_robots()
+        if ref in robots:
+            return read_robot_manifest(robots[ref] / "robot.yaml")
+        path = (self.base / ref).resolve()
+        if path.is_dir() and (path / "robot.yaml").is_file():
+            return read_robot_manifest(path / "robot.yaml")
+        if path.is_file() and path.name == "robot.yaml":
+            return read_robot_manifest(path)
+        if path.is_file() and path.suffix in _DESCRIPTION_SUFFIXES:
+            return RobotFiles(path.stem, path, {}, path.parent)
+        raise self.error(f"no such robot (built-in: {', '.join(robots)}; or a robot.yaml, "
+                         ".xacro or .urdf path)", "robot", ref)
+
+    def controller_file(self, robot: RobotFiles) -> Path:
+        ref = self.raw.get("controller_file")
+        if not isinstance(ref, str) or not ref:
+            raise self.error("must name a controller file", "controller_file", ref)
+        if ref in robot.controller_files:
+            return robot.controller_files[ref]
+        path = (self.base / ref).resolve()
+        if not path.is_file():
+            known = ", ".join(robot.controller_files) or "none"
+            raise self.error(f"no such controller file (robot {robot.name} has: {known})",
+                             "controller_file", ref)
+        return path
+
+
+def read_robot_manifest(path: Path) -> RobotFiles:
+    """Read a robot folder's ``robot.yaml``: ``description`` and named ``controllers`` files."""
+    source = str(path)
+    raw = read_yaml(path)
+    if not isinstance(raw, dict):
+        raise ConfigError("must be a mapping", source=source, value=raw)
+    folder = path.parent
+    desc = raw.get("description")
+    if not isinstance(desc, str) or not (folder / desc).is_file():
+        raise ConfigError("must name the robot's .xacro or .urdf file", source=source,
+                          field="description", value=desc)
+    controllers = raw.get("controllers") or {}
+    if not isinstance(controllers, dict):
+        raise ConfigError("must map names to controller YAML files", source=source,
+                          field="controllers", value=controllers)
+    files = {}
+    for key, rel in controllers.items():
+        if not isinstance(rel, str) or not (folder / rel).is_file():
+            raise ConfigError("controller file not found", source=source,
+                              field=f"controllers.{key}", value=rel)
+        files[str(key)] = (folder / rel).resolve()
+    return RobotFiles(folder.name, (folder / desc).resolve(), files, folder.resolve())

@@ -1,0 +1,224 @@
+"""Build a MuJoCo model (an ``MjSpec``) from a :class:`RobotModel`.
+
+jointctl writes the MuJoCo model itself instead of letting MuJoCo import the
+URDF, because that import drops transmissions (so every actuator), Gazebo
+sensors and velocity limits, fuses fixed children into their parents and
+loses the mass of a root fixed to the world. Here:
+
+- every link is a body; fixed joints and *locked* joints (lower == upper) are
+  welds (a body without a joint), so the force-sensor link survives as a body;
+- contacts between the two links of every joint are excluded;
+- one motor actuator per transmission with an effort interface, its force
+  range the joint's effort limit;
+- every force-torque sensor becomes a site at its link's origin with MuJoCo
+  ``force`` and ``torque`` sensors;
+- gravity and timestep come from :class:`WorldSettings`, not from the URDF.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from jointctl.errors import ModelError
+from jointctl.model.robot_model import Joint, Link, Pose, RobotModel, Shape
+
+WORLD_LINK = "world"
+
+_GEOM_TYPES = {
+    "box": mujoco.mjtGeom.mjGEOM_BOX,
+    "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
+    "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
+    "mesh": mujoco.mjtGeom.mjGEOM_MESH,
+}
+VISUAL_GROUP = 2
+COLLISION_GROUP = 3
+
+
+@dataclass(frozen=True)
+class WorldSettings:
+    """World-level physics settings.
+
+    ``gravity_m_s2`` is the world-frame gravity vector (z up, so Earth is
+    (0, 0, -9.81)); ``timestep_s`` the physics step; ``floor`` adds a ground
+    plane at z = 0.
+    """
+
+    timestep_s: float = 0.001
+    gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    floor: bool = True
+
+
+def sensor_site_name(sensor_name: str) -> str:
+    return f"{sensor_name}_site"
+
+
+def build_spec(robot: RobotModel, settings: WorldSettings) -> mujoco.MjSpec:
+    """Return an uncompiled ``MjSpec`` of ``robot`` in a world with ``settings``."""
+    spec = mujoco.MjSpec()
+    spec.modelname = robot.name
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    spec.compiler.autolimits = True
+    spec.option.timestep = settings.timestep_s
+    spec.option.gravity = list(settings.gravity_m_s2)
+    if settings.floor:
+        spec.worldbody.add_geom(
+            name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5.0, 5.0, 0.1],
+            rgba=[0.8, 0.8, 0.8, 1.0],
+        )
+    _Builder(robot, spec).build()
+    return spec
+
+
+class _Builder:
+    def __init__(self, robot: RobotModel, spec: mujoco.MjSpec) -> None:
+        self.robot = robot
+        self.spec = spec
+        self.meshes: dict[tuple[str, tuple[float, float, float]], str] = {}
+
+    def error(self, message: str, field: str, value=None) -> ModelError:
+        return ModelError(message, source=self.robot.source, field=field, value=value)
+
+    def build(self) -> None:
+        robot = self.robot
+        root = robot.root_link
+        if root == WORLD_LINK:
+            parent_body = self.spec.worldbody
+            self.add_shapes(parent_body, robot.link(root))
+        else:
+            # A robot without a "world" link is bolted to the world at its root.
+            parent_body = self.spec.worldbody.add_body(name=root)
+            self.add_link_contents(parent_body, robot.link(root))
+        self.add_children(parent_body, root)
+        for joint in robot.joints:
+            if joint.parent != WORLD_LINK or root != WORLD_LINK:
+                self.spec.add_exclude(bodyname1=joint.parent, bodyname2=joint.child)
+        self.add_actuators()
+        self.add_sensors()
+
+    def add_children(self, body, link_name: str) -> None:
+        for joint in self.robot.child_joints(link_name):
+            child = body.add_body(name=joint.child, pos=list(joint.origin.xyz),
+                                  quat=list(rpy_to_quat(joint.origin.rpy)))
+            self.add_joint(child, joint)
+            self.add_link_contents(child, self.robot.link(joint.child))
+            self.add_children(child, joint.child)
+
+    def add_joint(self, body, joint: Joint) -> None:
+        if joint.type in ("fixed",) or joint.is_locked:
+            return
+        if joint.type in ("floating", "planar"):
+            raise self.error("joint type not supported by the MuJoCo builder",
+                             f"joint[{joint.name}].type", joint.type)
+        jtype = mujoco.mjtJoint.mjJNT_SLIDE if joint.is_prismatic else mujoco.mjtJoint.mjJNT_HINGE
+        kwargs = dict(name=joint.name, type=jtype, axis=list(joint.axis),
+                      damping=joint.damping, frictionloss=joint.friction)
+        lim = joint.limits
+        if lim is not None and lim.lower is not None:
+            kwargs.update(limited=mujoco.mjtLimited.mjLIMITED_TRUE, range=[lim.lower, lim.upper])
+        else:
+            kwargs.update(limited=mujoco.mjtLimited.mjLIMITED_FALSE)
+        body.add_joint(**kwargs)
+
+    def add_link_contents(self, body, link: Link) -> None:
+        inertial = link.inertial
+        if inertial is not None:
+            body.mass = inertial.mass_kg
+            body.ipos = list(inertial.origin.xyz)
+            ixx, iyy, izz, ixy, ixz, iyz = inertial.inertia
+            rotation = rpy_to_matrix(inertial.origin.rpy)
+            tensor = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+            tensor = rotation @ tensor @ rotation.T  # into the link frame
+            body.fullinertia = [tensor[0, 0], tensor[1, 1], tensor[2, 2],
+                                tensor[0, 1], tensor[0, 2], tensor[1, 2]]
+            body.explicitinertial = True
+        self.add_shapes(body, link)
+
+    def add_shapes(self, body, link: Link) -> None:
+        for k, shape in enumerate(link.collisions):
+            self.add_geom(body, shape, f"{link.name}_collision_{k}", collision=True)
+        for k, shape in enumerate(link.visuals):
+            self.add_geom(body, shape, f"{link.name}_visual_{k}", collision=False)
+
+    def add_geom(self, body, shape: Shape, name: str, *, collision: bool) -> None:
+        g = shape.geometry
+        kwargs = dict(name=name, type=_GEOM_TYPES[g.kind], pos=list(shape.origin.xyz),
+                      quat=list(rpy_to_quat(shape.origin.rpy)))
+        if g.kind == "box":
+            kwargs["size"] = [s / 2 for s in g.size_m]
+        elif g.kind == "cylinder":
+            kwargs["size"] = [g.radius_m, g.length_m / 2, 0.0]
+        elif g.kind == "sphere":
+            kwargs["size"] = [g.radius_m, 0.0, 0.0]
+        else:
+            kwargs["meshname"] = self.mesh(g.mesh_path, g.scale)
+        if collision:
+            kwargs.update(group=COLLISION_GROUP, contype=1, conaffinity=1, rgba=[0.5, 0.5, 0.9, 0.0])
+        else:
+            kwargs.update(group=VISUAL_GROUP, contype=0, conaffinity=0)
+        body.add_geom(**kwargs)
+
+    def mesh(self, path: str, scale) -> str:
+        key = (path, tuple(scale))
+        if key not in self.meshes:
+            name = f"mesh_{len(self.meshes)}"
+            self.spec.add_mesh(name=name, file=path, scale=list(scale))
+            self.meshes[key] = name
+        return self.meshes[key]
+
+    def add_actuators(self) -> None:
+        robot = self.robot
+        for tr in robot.transmissions:
+            joint = robot.joint(tr.joint)
+            if not joint.is_movable:
+                raise self.error("transmission on a joint that cannot move",
+                                 f"transmission[{tr.name}].joint", tr.joint)
+            if "EffortJointInterface" not in tr.hardware_interfaces:
+                raise self.error(
+                    "the MuJoCo hardware drives joints through EffortJointInterface only",
+                    f"transmission[{tr.name}].hardwareInterface", ", ".join(tr.hardware_interfaces))
+            act = self.spec.add_actuator(name=tr.joint, target=tr.joint,
+                                         trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            act.set_to_motor()
+            effort = joint.limits.effort if joint.limits is not None else 0.0
+            if effort > 0:
+                act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                act.forcerange = [-effort, effort]
+
+    def add_sensors(self) -> None:
+        for sensor in self.robot.sensors:
+            body = self.spec.body(sensor.link)
+            if body is None:
+                raise self.error("sensor link does not exist", f"sensor[{sensor.name}].link",
+                                 sensor.link)
+            site = sensor_site_name(sensor.name)
+            body.add_site(name=site, size=[0.01, 0.01, 0.01])
+            self.spec.add_sensor(name=f"{sensor.name}_force", type=mujoco.mjtSensor.mjSENS_FORCE,
+                                 objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site)
+            self.spec.add_sensor(name=f"{sensor.name}_torque", type=mujoco.mjtSensor.mjSENS_TORQUE,
+                                 objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site)
+
+
+def rpy_to_matrix(rpy) -> np.ndarray:
+    """URDF fixed-axis roll-pitch-yaw [rad] to a rotation matrix R = Rz(y) Ry(p) Rx(r)."""
+    r, p, y = rpy
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def rpy_to_quat(rpy) -> tuple[float, float, float, float]:
+    """URDF roll-pitch-yaw [rad] to a MuJoCo quaternion (w, x, y, z)."""
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, rpy_to_matrix(rpy).ravel())
+    return tuple(float(q) for q in quat)
+
+
+def pose_to_pos_quat(pose: Pose):
+    return list(pose.xyz), list(rpy_to_quat(pose.rpy))

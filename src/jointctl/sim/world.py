@@ -1,0 +1,110 @@
+"""A compiled MuJoCo world holding one robot, with named access to its joints.
+
+:class:`MujocoWorld` owns ``MjModel``/``MjData``, resolves joint, actuator and
+sensor names to MuJoCo addresses once, and steps the physics. Joint values
+are in the URDF's units (m for prismatic, rad for revolute joints).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import mujoco
+import numpy as np
+
+from jointctl.errors import ConfigError, ModelError
+from jointctl.model.robot_model import RobotModel
+from jointctl.sim.mjcf_builder import WorldSettings, build_spec, sensor_site_name
+
+
+class MujocoWorld:
+    """The robot in a MuJoCo world.
+
+    ``joint_names`` lists the robot's movable joints in document order; the
+    arrays ``qpos_adr``/``dof_adr``/``actuator_ids`` follow that order
+    (``-1`` where a joint has no actuator).
+    """
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        settings: WorldSettings = WorldSettings(),
+        *,
+        initial_positions: Mapping[str, float] | None = None,
+        source: str | None = None,
+    ) -> None:
+        self.robot = robot
+        self.settings = settings
+        self.spec = build_spec(robot, settings)
+        try:
+            self.model = self.spec.compile()
+        except Exception as exc:  # MuJoCo reports model errors as ValueError
+            raise ModelError(f"MuJoCo refused the model: {exc}", source=robot.source) from None
+        self.data = mujoco.MjData(self.model)
+        self.joint_names: tuple[str, ...] = tuple(j.name for j in robot.movable_joints)
+        m = self.model
+        jids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in self.joint_names]
+        self.qpos_adr = np.array([m.jnt_qposadr[j] for j in jids], dtype=int)
+        self.dof_adr = np.array([m.jnt_dofadr[j] for j in jids], dtype=int)
+        self.actuator_ids = np.array(
+            [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in self.joint_names],
+            dtype=int,
+        )
+        self.initial_positions = self._check_initial(initial_positions or {}, source)
+        self.reset()
+
+    def _check_initial(self, positions: Mapping[str, float], source: str | None) -> dict[str, float]:
+        checked = {}
+        for name, value in positions.items():
+            field = f"initial_positions.{name}"
+            if name not in self.joint_names:
+                raise ConfigError(f"no movable joint of that name (joints: {', '.join(self.joint_names)})",
+                                  source=source, field=field, value=name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError("must be a finite number", source=source, field=field, value=value)
+            lim = self.robot.joint(name).limits
+            if lim is not None and lim.lower is not None and not lim.lower <= value <= lim.upper:
+                raise ConfigError(f"outside the joint's limits [{lim.lower}, {lim.upper}]",
+                                  source=source, field=field, value=value)
+            checked[name] = float(value)
+        return checked
+
+    @property
+    def timestep_s(self) -> float:
+        return float(self.model.opt.timestep)
+
+    @property
+    def time_s(self) -> float:
+        return float(self.data.time)
+
+    def reset(self) -> None:
+        """Back to time zero, at rest, at the initial joint positions."""
+        mujoco.mj_resetData(self.model, self.data)
+        for name, value in self.initial_positions.items():
+            self.data.qpos[self.qpos_adr[self.joint_names.index(name)]] = value
+        mujoco.mj_forward(self.model, self.data)
+
+    def step(self) -> None:
+        mujoco.mj_step(self.model, self.data)
+
+    def contiguous(self, adr: np.ndarray) -> slice | None:
+        """A slice covering ``adr`` when the addresses are consecutive, else None."""
+        if len(adr) and np.array_equal(adr, np.arange(adr[0], adr[0] + len(adr))):
+            return slice(int(adr[0]), int(adr[0]) + len(adr))
+        return None
+
+    def sensor_adr(self, sensor_name: str) -> tuple[int, int]:
+        """Data addresses of the force and torque triples of a force-torque sensor."""
+        m = self.model
+        ids = []
+        for part in ("force", "torque"):
+            sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, f"{sensor_name}_{part}")
+            if sid < 0:
+                raise ConfigError("no force-torque sensor of that name", field="sensor",
+                                  value=sensor_name)
+            ids.append(int(m.sensor_adr[sid]))
+        return ids[0], ids[1]
+
+    def site_id(self, sensor_name: str) -> int:
+        return mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, sensor_site_name(sensor_name))

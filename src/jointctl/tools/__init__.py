@@ -1,0 +1,1 @@
+"""Tools around the control loop: safe command expressions and command signal sources."""
