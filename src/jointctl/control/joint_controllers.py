@@ -61,6 +61,9 @@ class _EffortJointController(Controller):
         self.pid.set_gains(gains)
 
     def _finite(self, value: float, what: str) -> float:
+        # Fast path for the common case (a finite float); x - x is 0.0 only when x is finite.
+        if type(value) is float and value - value == 0.0:
+            return value
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise InvalidCommand("command must be a finite number", source=self.name, field=what,
                                  value=value)

@@ -73,7 +73,8 @@ class ControllerManager:
         self._definitions: dict[str, Params] = {}
         self._loaded: dict[str, Controller] = {}
         self._active: list[Controller] = []
-        self._update_calls: tuple = ()
+        #: The running controllers' update methods, in start order (read by the loop every cycle).
+        self.update_calls: tuple = ()
         self.namespace: str | None = None
 
     # -- definitions -------------------------------------------------------------
@@ -190,7 +191,7 @@ class ControllerManager:
         return c.claimed_interfaces()
 
     def _refresh(self) -> None:
-        self._update_calls = tuple(c.update for c in self._active)
+        self.update_calls = tuple(c.update for c in self._active)
 
     @property
     def active(self) -> tuple[Controller, ...]:
@@ -209,7 +210,7 @@ class ControllerManager:
 
     def update(self, time_s: float, period_s: float) -> None:
         """Update every running controller, in start order."""
-        for call in self._update_calls:
+        for call in self.update_calls:
             call(time_s, period_s)
 
 

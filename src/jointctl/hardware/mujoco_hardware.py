@@ -11,6 +11,7 @@ exerts on its parent, in the sensor link's frame, so a load resting on the
 from __future__ import annotations
 
 import numpy as np
+from mujoco import mj_step
 
 from jointctl.errors import ConfigError
 from jointctl.hardware.interface import EFFORT, HardwareInterface
@@ -36,10 +37,12 @@ class MujocoHardware(HardwareInterface):
         self._ctrl_ids = act_ids
         self._ctrl_slice = world.contiguous(act_ids) if self._all_actuated else None
         self._effort_cmd = self.command_buffer(EFFORT)
-        self._sensors = [
-            (name, *world.sensor_adr(name)) for name in self.sensor_names
-        ]
-        self._steps_per = {}
+        self._sensordata = world.data.sensordata
+        self._sensor_slots = tuple(
+            (self.wrenches[name], *world.sensor_adr(name)) for name in self.sensor_names
+        )
+        self._model, self._data = world.model, world.data
+        self._period_s, self._nstep = world.timestep_s, 1
 
     def command_interfaces(self, joint: str) -> frozenset[str]:
         return frozenset({EFFORT}) if joint in self._actuated else frozenset()
@@ -55,12 +58,11 @@ class MujocoHardware(HardwareInterface):
             for k, f in zip(self._act_joint_idx, force):
                 effort[k] = f
             self.effort = effort
-        if self._sensors:
-            data = self.world.data.sensordata
-            for name, fadr, tadr in self._sensors:
-                w = self.wrenches[name]
-                w[0:3] = (-data[fadr : fadr + 3]).tolist()
-                w[3:6] = (-data[tadr : tadr + 3]).tolist()
+        if self._sensor_slots:
+            data = self._sensordata.tolist()
+            for w, f, t in self._sensor_slots:
+                w[0], w[1], w[2] = -data[f], -data[f + 1], -data[f + 2]
+                w[3], w[4], w[5] = -data[t], -data[t + 1], -data[t + 2]
 
     def write(self) -> None:
         ctrl = self.world.data.ctrl
@@ -72,12 +74,10 @@ class MujocoHardware(HardwareInterface):
                 ctrl[act] = cmd[k]
 
     def advance(self, period_s: float) -> None:
-        steps = self._steps_per.get(period_s)
-        if steps is None:
-            steps = self._steps_per[period_s] = _steps(period_s, self.world.timestep_s)
-        world = self.world
-        for _ in range(steps):
-            world.step()
+        if period_s != self._period_s:
+            self._nstep = _steps(period_s, self.world.timestep_s)
+            self._period_s = period_s
+        mj_step(self._model, self._data, self._nstep)
 
     def reset(self) -> None:
         self.world.reset()

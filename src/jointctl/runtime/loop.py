@@ -76,7 +76,7 @@ class ControlLoop:
         observers = tuple(self.observers)
         hw = self.hardware
         read, write, advance = hw.read, hw.write, hw.advance
-        update = self.manager.update
+        manager = self.manager
         wait = self.clock.wait_for
         realtime = self.clock.realtime
         start_cycle = self.cycle
@@ -91,7 +91,8 @@ class ControlLoop:
                 for hook in inputs:
                     hook(t)
                 read()
-                update(t, period)
+                for update in manager.update_calls:
+                    update(t, period)
                 write()
                 for hook in observers:
                     hook(t)

@@ -76,8 +76,6 @@ class Session:
         duration = self.scenario.duration_s if duration_s is None else duration_s
         wall_before = self.loop.wall_time_s
         cycles = self.loop.run(duration)
-        if self.recorder is not None:
-            self.recorder.flush()
         wall = self.loop.wall_time_s - wall_before
         return cycles * self.loop.period_s / wall if wall > 0 else math.inf
 
