@@ -1,5 +1,101 @@
-"""Command-line interface (placeholder until the commands are wired)."""
+"""The ``jointctl`` command.
+
+    jointctl list                                   built-in robots and scenarios
+    jointctl run SCENARIO [--out DIR] [--set K=V]   run one scenario: trace.csv, metrics.json, PNGs
+    jointctl demo [--out DIR]                       every built-in experiment and report.md
+
+Every error a user can cause is printed as one line naming the file, field
+and value, with exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from jointctl import __version__
+from jointctl.errors import JointCtlError
+
+EXIT_USAGE = 2
 
 
-def main(argv=None) -> int:
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="jointctl", description="Joint-level robot control on MuJoCo.")
+    parser.add_argument("--version", action="version", version=f"jointctl {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    sub.add_parser("list", help="list built-in robots and scenarios")
+
+    run = sub.add_parser("run", help="run a scenario and write trace.csv, metrics.json and figures")
+    run.add_argument("scenario", help="a built-in scenario name or a scenario YAML file")
+    run.add_argument("--out", type=Path, help="output folder (default: out/<scenario name>)")
+    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a scenario field, e.g. gravity=-5 or "
+                          "controllers.joint1_position_controller.pid.p=800 (repeatable)")
+    run.add_argument("--realtime", action="store_true", help="pace the loop to the wall clock")
+    run.add_argument("--speed", type=float, default=1.0,
+                     help="with --realtime: loop time per wall-clock time (default 1.0)")
+    run.add_argument("--package-path", action="append", default=[], metavar="DIR",
+                     help="folder searched for $(find pkg) and package:// (repeatable)")
+
+    demo = sub.add_parser("demo", help="run every built-in experiment and write report.md")
+    demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        return _COMMANDS[args.command](args)
+    except JointCtlError as exc:
+        print(f"jointctl: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("jointctl: interrupted", file=sys.stderr)
+        return 130
+
+
+def _list(args: argparse.Namespace) -> int:
+    from jointctl.scenario.spec import builtin_robots, builtin_scenarios, load_scenario
+
+    print("robots:")
+    for name, folder in builtin_robots().items():
+        print(f"  {name:<24} {folder}")
+    print("scenarios:")
+    for name in builtin_scenarios():
+        summary = load_scenario(name).description.split(". ")[0]
+        print(f"  {name:<24} {summary}")
     return 0
+
+
+def _run(args: argparse.Namespace) -> int:
+    from jointctl.scenario.run import run_scenario
+    from jointctl.scenario.spec import load_scenario
+
+    if not args.speed > 0:
+        raise JointCtlError("must be positive", field="--speed", value=args.speed)
+    scenario = load_scenario(args.scenario, args.overrides)
+    out = args.out or Path("out") / scenario.name
+    metrics = run_scenario(scenario, out, realtime=args.realtime, speed=args.speed,
+                           package_path=tuple(args.package_path))
+    shown = {k: v for k, v in metrics.items() if k not in ("plant",)}
+    print(json.dumps(shown, indent=2))
+    print(f"wrote {out}/", file=sys.stderr)
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from jointctl.scenario.run import run_demo
+
+    report = run_demo(args.out)
+    print(f"wrote {report}")
+    return 0
+
+
+_COMMANDS = {"list": _list, "run": _run, "demo": _demo}
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -53,7 +53,8 @@ def expand_xacro(path: Path, resolver: PackageResolver, args: Mapping[str, str])
             exc.source = exc.source or str(path)
             raise
         except Exception as exc:  # xacro raises XacroException, XML and name errors
-            raise ModelError(f"xacro failed: {exc}", source=str(path)) from None
+            detail = " ".join(str(exc).split())  # xacro's messages span lines
+            raise ModelError(f"xacro failed: {detail}", source=str(path)) from None
     return doc.toxml()
 
 

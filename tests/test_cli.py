@@ -1,0 +1,112 @@
+"""The jointctl command as a user runs it: a real process, its output and exit status."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import step_scenario
+
+JOINTCTL = [sys.executable, "-m", "jointctl.cli"]
+
+
+def jointctl(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    env = dict(os.environ, MPLBACKEND="Agg")
+    return subprocess.run([*JOINTCTL, *map(str, args)], capture_output=True, text=True, cwd=cwd,
+                          env=env, timeout=300)
+
+
+def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) -> None:
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("jointctl: error: ")
+    assert "Traceback" not in result.stderr
+    for fragment in fragments:
+        assert fragment in lines[0]
+
+
+def test_list_names_the_robot_and_scenarios():
+    result = jointctl("list")
+    assert result.returncode == 0
+    for name in ("one_dof", "one_dof_step", "one_dof_sine", "one_dof_velocity_sine"):
+        assert name in result.stdout
+
+
+def test_run_writes_trace_metrics_and_figures(tmp_path):
+    result = jointctl("run", "one_dof_step", "--out", tmp_path / "step", "--set", "duration_s=1.5")
+    assert result.returncode == 0, result.stderr
+    metrics = json.loads((tmp_path / "step" / "metrics.json").read_text())
+    assert json.loads(result.stdout)["natural_frequency_rad_s"] == metrics["natural_frequency_rad_s"]
+    assert {"trace.csv", "metrics.json", "position.png", "effort.png"} <= {
+        p.name for p in (tmp_path / "step").iterdir()}
+
+
+def test_run_with_gravity_and_gain_overrides(tmp_path, write_scenario):
+    scenario = write_scenario(step_scenario(duration_s=1.5, analysis={"type": "step_response", "joint": "joint1"}))
+    result = jointctl("run", scenario, "--out", tmp_path / "o", "--set", "gravity=-5",
+                      "--set", "controllers.joint1_position_controller.pid.p=800")
+    assert result.returncode == 0, result.stderr
+    metrics = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert metrics["steady_state_error_m"] == pytest.approx(1.01 * 5 / 800, rel=0.01)
+
+
+@pytest.mark.parametrize(("args", "fragments"), [
+    (["run", "one_dof_step", "--set", "controllers.joint1_position_controller.pid.p=-5"],
+     ["one_dof_pos_ctl_params.yaml", "one_DOF_robot.joint1_position_controller.pid.p", "-5"]),
+    (["run", "one_dof_step", "--set", "controllers.joint1_position_controller.pid.d=.nan"],
+     ["pid.d", "nan"]),
+    (["run", "one_dof_step", "--set", "controllers.joint1_position_controller.type=foo/Bar"],
+     ["joint1_position_controller.type", "foo/Bar"]),
+    (["run", "one_dof_step", "--set", "controllers.joint1_position_controller.joint=joint7"],
+     ["joint1_position_controller.joint", "joint7"]),
+    (["run", "one_dof_step", "--set", "gravity=sideways"], ["one_dof_step.yaml", "gravity", "sideways"]),
+    (["run", "one_dof_step", "--set", "nonsense"], ["--set", "nonsense"]),
+    (["run", "no_such_scenario"], ["no_such_scenario"]),
+    (["run", "one_dof_step", "--speed", "0"], ["--speed"]),
+])
+def test_bad_input_is_one_line_with_exit_code_2(args, fragments, tmp_path):
+    assert_one_line_error(jointctl(*args, "--out", tmp_path / "o") if args[0] == "run" and "--out" not in args
+                          else jointctl(*args), *fragments)
+    assert not (tmp_path / "o" / "trace.csv").exists()
+
+
+def test_unsafe_expression_is_refused(tmp_path, write_scenario):
+    cmd = {"type": "expression", "expression": "__import__('os').system('true')", "rate_hz": 100}
+    scenario = write_scenario(step_scenario(commands={"joint1_position_controller": cmd}))
+    assert_one_line_error(jointctl("run", scenario, "--out", tmp_path / "o"),
+                          str(scenario), "commands.joint1_position_controller.expression", "__import__")
+
+
+def test_missing_and_malformed_files(tmp_path, write_scenario):
+    assert_one_line_error(jointctl("run", tmp_path / "absent.yaml"), "absent.yaml")
+    bad_yaml = tmp_path / "bad.yaml"
+    bad_yaml.write_text("robot: [one_dof\n")
+    assert_one_line_error(jointctl("run", bad_yaml), "bad.yaml", "not valid YAML")
+    bad_controllers = tmp_path / "gains.yaml"
+    bad_controllers.write_text("one_DOF_robot:\n  joint1_position_controller: {type: 3\n")
+    scenario = write_scenario(step_scenario(controller_file=str(bad_controllers)))
+    assert_one_line_error(jointctl("run", scenario), "gains.yaml", "not valid YAML")
+    missing_xacro = write_scenario(step_scenario(robot=str(tmp_path / "nothere.xacro")), "s2.yaml")
+    assert_one_line_error(jointctl("run", missing_xacro), "robot", "nothere.xacro")
+    bad_xacro = tmp_path / "bad.xacro"
+    bad_xacro.write_text('<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                         '<link name="${undefined_property}"/></robot>')
+    from tests.conftest import POSITION_YAML
+    scenario = write_scenario(step_scenario(robot=str(bad_xacro), controller_file=str(POSITION_YAML)), "s3.yaml")
+    assert_one_line_error(jointctl("run", scenario), "bad.xacro", "xacro failed")
+
+
+def test_demo_writes_a_report_with_every_experiment(tmp_path):
+    result = jointctl("demo", "--out", tmp_path / "demo")
+    assert result.returncode == 0, result.stderr
+    report = (tmp_path / "demo" / "report.md").read_text()
+    for name in ("one_dof_step", "one_dof_sine", "one_dof_velocity_sine"):
+        assert f"## {name}" in report
+        assert f"]({name}/position.png)" in report
+    assert "| natural_frequency_rad_s |" in report and "| expected |" in report

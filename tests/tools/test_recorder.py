@@ -1,0 +1,71 @@
+"""The trace recorder: columns, decimation, spooling, faithful CSV."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import load_scenario
+from jointctl.tools.recorder import TraceRecorder, load_trace, trace_columns
+from tests.conftest import step_scenario
+
+
+def test_columns_group_by_quantity_then_sensor_axes():
+    assert trace_columns(["a", "b"], ["ft"]) == [
+        "time_s", "a.command", "b.command", "a.position", "b.position", "a.velocity",
+        "b.velocity", "a.effort", "b.effort", "ft.force_x", "ft.force_y", "ft.force_z",
+        "ft.torque_x", "ft.torque_y", "ft.torque_z",
+    ]
+
+
+def test_trace_matches_the_hardware_state_of_each_cycle(write_scenario, tmp_path):
+    session = Session(load_scenario(write_scenario(step_scenario(duration_s=0.15))), out_dir=tmp_path)
+    seen = []
+    session.loop.add_observer(lambda t: seen.append((t, session.hardware.position[0],
+                                                      session.hardware.effort[0])))
+    session.run()
+    session.close()
+    trace = load_trace(tmp_path / "trace.csv")
+    assert len(trace.time_s) == 150
+    np.testing.assert_allclose(trace.time_s, [s[0] for s in seen], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(trace.joint("joint1", "position"), [s[1] for s in seen], rtol=1e-9)
+    np.testing.assert_allclose(trace.joint("joint1", "effort"), [s[2] for s in seen], rtol=1e-9, atol=1e-9)
+    command = trace.joint("joint1", "command")
+    assert command[0] == -0.2 and command[-1] == -0.5  # the step at 0.1 s
+
+
+def test_decimation_keeps_one_cycle_in_every(write_scenario, tmp_path):
+    scenario = load_scenario(write_scenario(step_scenario(duration_s=0.1, record={"every": 10})))
+    with Session(scenario, out_dir=tmp_path) as session:
+        session.run()
+    trace = load_trace(tmp_path / "trace.csv")
+    np.testing.assert_allclose(trace.time_s, np.arange(10) * 0.01, atol=1e-12)
+
+
+def test_rows_spool_to_disk_in_chunks_and_the_spool_is_removed(write_scenario, tmp_path):
+    scenario = load_scenario(write_scenario(step_scenario(duration_s=0.1)))
+    session = Session(scenario)
+    recorder = TraceRecorder(tmp_path / "trace.csv", session.hardware,
+                             [session.manager.controller("joint1_position_controller")], chunk_rows=16)
+    session.loop.add_observer(recorder)
+    session.run()
+    assert recorder.rows_written == 96  # six full chunks of 16 went to disk during the run
+    assert len(recorder._values) == 4 * len(recorder.columns)
+    recorder.close()
+    assert not any(p.name.startswith(".") for p in tmp_path.iterdir())
+    assert len(load_trace(tmp_path / "trace.csv").time_s) == 100
+
+
+def test_every_must_be_positive(write_scenario, tmp_path):
+    session = Session(load_scenario(write_scenario(step_scenario())))
+    with pytest.raises(ValueError, match="every"):
+        TraceRecorder(tmp_path / "t.csv", session.hardware, [None], every=0)
+
+
+def test_joint_without_a_controller_records_nan_command(write_scenario, tmp_path):
+    session = Session(load_scenario(write_scenario(step_scenario())))
+    with TraceRecorder(tmp_path / "t.csv", session.hardware, [None]) as recorder:
+        session.loop.add_observer(recorder)
+        session.loop.run(cycles=3)
+    assert np.isnan(load_trace(tmp_path / "t.csv").joint("joint1", "command")).all()
