@@ -143,7 +143,7 @@ def test_set_gains_changes_the_clamp_too() -> None:
     [
         ("p", -1.0), ("i", -0.5), ("d", -1e-9),
         ("p", math.nan), ("i", math.inf), ("d", -math.inf),
-        ("i_clamp_min", math.nan), ("i_clamp_max", math.inf),
+        ("i_clamp_min", math.nan), ("i_clamp_max", "x"),
         ("p", True), ("d", False), ("i", "1.0"), ("p", None),
     ],
 )
@@ -235,3 +235,13 @@ def test_from_params_refusals_name_the_field(values: dict, key: str, words: str)
     assert info.value.field == f"one_DOF_robot.ctl.pid.{key}"
     assert info.value.source == "gains.yaml"
     assert words in info.value.message
+
+
+@pytest.mark.parametrize("key", ["i_clamp", "i_clamp_min", "i_clamp_max"])
+def test_yaml_clamps_must_be_finite(key: str) -> None:
+    from jointctl.control.params import Params
+    from jointctl.errors import ConfigError
+
+    params = Params({"p": 1.0, key: math.inf}, source="gains.yaml", field="ns.ctl.pid")
+    with pytest.raises(ConfigError, match=rf"gains.yaml: ns.ctl.pid.{key}: must be finite"):
+        PidGains.from_params(params, default_i_clamp=10.0)

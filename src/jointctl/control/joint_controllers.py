@@ -13,6 +13,7 @@ commands to its velocity limit, as ros_control does.
 from __future__ import annotations
 
 import math
+import numbers
 
 from jointctl.control.controller import Controller, register_controller
 from jointctl.control.params import Params
@@ -41,6 +42,9 @@ class _EffortJointController(Controller):
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         self.index = hardware.joint_index(self.joint, source=self.source, field=f"{self.field}.joint")
+        if not robot.has_joint(self.joint):
+            raise ConfigError("the robot model has no joint of that name", source=self.source,
+                              field=f"{self.field}.joint", value=self.joint)
         joint = robot.joint(self.joint)
         if EFFORT not in hardware.command_interfaces(self.joint):
             raise ConfigError("the joint has no effort command interface (no transmission)",
@@ -50,8 +54,7 @@ class _EffortJointController(Controller):
         self.velocity_limit = limits.velocity if limits is not None and limits.velocity > 0 else math.inf
         self.lower = limits.lower if limits is not None and limits.lower is not None else -math.inf
         self.upper = limits.upper if limits is not None and limits.upper is not None else math.inf
-        default_clamp = self.effort_limit if math.isfinite(self.effort_limit) else 0.0
-        self.pid = Pid(PidGains.from_params(self._pid_params, default_i_clamp=default_clamp),
+        self.pid = Pid(PidGains.from_params(self._pid_params, default_i_clamp=self.effort_limit),
                        self.effort_limit)
         self.hardware = hardware
         self.effort_command = hardware.command_buffer(EFFORT)
@@ -64,7 +67,7 @@ class _EffortJointController(Controller):
         # Fast path for the common case (a finite float); x - x is 0.0 only when x is finite.
         if type(value) is float and value - value == 0.0:
             return value
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
             raise InvalidCommand("command must be a finite number", source=self.name, field=what,
                                  value=value)
         return float(value)

@@ -8,6 +8,7 @@ it to each subscriber. Subscribers run inside the loop: they must only queue.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -52,7 +53,8 @@ class JointStateController(Controller):
         self._subscribers.append(callback)
 
     def start(self, time_s: float) -> None:
-        self._next_k = round(time_s / self.period_s)
+        # The first publication is at the first multiple of the period at or after time_s.
+        self._next_k = math.ceil(time_s / self.period_s - 1e-9)
 
     def update(self, time_s: float, period_s: float) -> None:
         # Publish on the k-th multiple of the period; integer counting keeps it drift-free.

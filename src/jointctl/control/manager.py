@@ -122,6 +122,9 @@ class ControllerManager:
             raise ConfigError(f"cannot tell which namespace holds the controllers "
                               f"(robot namespace {wanted!r})", source=source, value=sorted(tree))
         body = namespaces[key]
+        if not body:
+            raise ConfigError("the namespace defines no controllers", source=source, field=key,
+                              value=body)
         for name, value in body.items():
             if not is_controller(value):
                 raise ConfigError("a controller needs a mapping with a 'type'", source=source,
@@ -155,7 +158,7 @@ class ControllerManager:
 
     def start(self, names: Iterable[str], time_s: float = 0.0) -> None:
         """Load (if needed) and start ``names``, refusing conflicting claims; all or nothing."""
-        names = list(names)
+        names = list(dict.fromkeys(names))  # a name listed twice starts once
         controllers = [self.load(n) for n in names]
         claims = {c: self._active_claim(c) for c in self._active}
         owner: dict[tuple[str, str], str] = {}

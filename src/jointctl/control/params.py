@@ -3,7 +3,7 @@
 :class:`Params` wraps one controller's mapping and remembers where it came
 from (file and dotted field path) so every refusal reads like
 ``config/gains.yaml: one_DOF_robot.joint1_position_controller.pid.p: must not
-be negative (got -5)``.
+be negative (got -5.0)``.
 """
 
 from __future__ import annotations

@@ -6,8 +6,9 @@ clamped to ``[i_clamp_min, i_clamp_max]``; with ``antiwindup`` the
 accumulated state itself is clamped, so it never winds up beyond the clamp.
 
 One deliberate difference from control_toolbox: when a YAML file gives no
-``i_clamp`` the clamp defaults to the joint's effort limit, not to zero
-(control_toolbox's zero silently disables an ``i`` gain).
+``i_clamp`` the clamp defaults to the joint's effort limit (unbounded for a
+joint without one), not to zero (control_toolbox's zero silently disables an
+``i`` gain). Clamps given in YAML must be finite.
 """
 
 from __future__ import annotations
@@ -33,8 +34,11 @@ class PidGains:
     def __post_init__(self) -> None:
         for name in ("p", "i", "d", "i_clamp_min", "i_clamp_max"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ConfigError("must be a finite number", field=f"pid.{name}", value=value)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value):
+                raise ConfigError("must be a number", field=f"pid.{name}", value=value)
+        for name in ("p", "i", "d"):
+            if not math.isfinite(getattr(self, name)):
+                raise ConfigError("must be finite", field=f"pid.{name}", value=getattr(self, name))
         for name in ("p", "i", "d"):
             if getattr(self, name) < 0:
                 raise ConfigError("must not be negative", field=f"pid.{name}", value=getattr(self, name))
@@ -51,12 +55,12 @@ class PidGains:
         clamp = params.number("i_clamp", None, minimum=0)
         if clamp is None:
             clamp = default_i_clamp
-        i_max = params.number("i_clamp_max", clamp)
-        i_min = params.number("i_clamp_min", -clamp)
+        i_max = params.number("i_clamp_max") if params.has("i_clamp_max") else clamp
+        i_min = params.number("i_clamp_min") if params.has("i_clamp_min") else -clamp
         if i_min > i_max:
             raise params.error("is above i_clamp_max", "i_clamp_min", i_min)
         antiwindup = params.boolean("antiwindup", False)
-        params.reject_unknown({"publish_state"})
+        params.reject_unknown({"publish_state", "i_clamp_min", "i_clamp_max"})
         return cls(p, i, d, i_min, i_max, antiwindup)
 
 

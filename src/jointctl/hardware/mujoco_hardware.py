@@ -25,17 +25,19 @@ class MujocoHardware(HardwareInterface):
         super().__init__(world.joint_names, tuple(s.name for s in world.robot.sensors))
         self.world = world
         d = world.data
-        # Cached numpy views; a slice when the addresses are consecutive (the usual case).
-        self._qpos = _view(d.qpos, world.qpos_adr, world)
-        self._qvel = _view(d.qvel, world.dof_adr, world)
         actuated = world.actuator_ids >= 0
         self._actuated = frozenset(n for n, a in zip(world.joint_names, actuated) if a)
-        self._all_actuated = bool(actuated.all())
-        act_ids = world.actuator_ids[actuated]
         self._act_joint_idx = np.flatnonzero(actuated)
-        self._force = _view(d.actuator_force, act_ids, world)
-        self._ctrl_ids = act_ids
-        self._ctrl_slice = world.contiguous(act_ids) if self._all_actuated else None
+        self._ctrl_ids = world.actuator_ids[actuated]
+        qpos_sl, qvel_sl = world.contiguous(world.qpos_adr), world.contiguous(world.dof_adr)
+        ctrl_sl = world.contiguous(self._ctrl_ids) if actuated.all() else None
+        if qpos_sl is not None and qvel_sl is not None and ctrl_sl is not None:
+            # The usual case: cached numpy views, one tolist() per quantity per cycle.
+            self._qpos_view, self._qvel_view = d.qpos[qpos_sl], d.qvel[qvel_sl]
+            self._force_view, self._ctrl_view = d.actuator_force[ctrl_sl], d.ctrl[ctrl_sl]
+            self.read, self.write = self._read_contiguous, self._write_contiguous
+        else:
+            self.read, self.write = self._read_indexed, self._write_indexed
         self._effort_cmd = self.command_buffer(EFFORT)
         self._sensordata = world.data.sensordata
         self._sensor_slots = tuple(
@@ -47,31 +49,43 @@ class MujocoHardware(HardwareInterface):
     def command_interfaces(self, joint: str) -> frozenset[str]:
         return frozenset({EFFORT}) if joint in self._actuated else frozenset()
 
-    def read(self) -> None:
-        self.position = self._qpos().tolist()
-        self.velocity = self._qvel().tolist()
-        force = self._force().tolist()
-        if self._all_actuated:
-            self.effort = force
-        else:
-            effort = [0.0] * len(self.joint_names)
-            for k, f in zip(self._act_joint_idx, force):
-                effort[k] = f
-            self.effort = effort
-        if self._sensor_slots:
-            data = self._sensordata.tolist()
-            for w, f, t in self._sensor_slots:
-                w[0], w[1], w[2] = -data[f], -data[f + 1], -data[f + 2]
-                w[3], w[4], w[5] = -data[t], -data[t + 1], -data[t + 2]
+    def read(self) -> None:  # replaced per instance by the fastest fitting variant
+        raise NotImplementedError
 
-    def write(self) -> None:
-        ctrl = self.world.data.ctrl
-        if self._ctrl_slice is not None:
-            ctrl[self._ctrl_slice] = self._effort_cmd
-        else:
-            cmd = self._effort_cmd
-            for k, act in zip(self._act_joint_idx, self._ctrl_ids):
-                ctrl[act] = cmd[k]
+    def write(self) -> None:  # replaced per instance by the fastest fitting variant
+        raise NotImplementedError
+
+    def _read_contiguous(self) -> None:
+        self.position = self._qpos_view.tolist()
+        self.velocity = self._qvel_view.tolist()
+        self.effort = self._force_view.tolist()
+        if self._sensor_slots:
+            self._read_sensors()
+
+    def _write_contiguous(self) -> None:
+        self._ctrl_view[:] = self._effort_cmd
+
+    def _read_indexed(self) -> None:
+        d = self.world.data
+        self.position = d.qpos[self.world.qpos_adr].tolist()
+        self.velocity = d.qvel[self.world.dof_adr].tolist()
+        effort = [0.0] * len(self.joint_names)
+        for k, act in zip(self._act_joint_idx, self._ctrl_ids):
+            effort[k] = float(d.actuator_force[act])
+        self.effort = effort
+        if self._sensor_slots:
+            self._read_sensors()
+
+    def _write_indexed(self) -> None:
+        ctrl, cmd = self.world.data.ctrl, self._effort_cmd
+        for k, act in zip(self._act_joint_idx, self._ctrl_ids):
+            ctrl[act] = cmd[k]
+
+    def _read_sensors(self) -> None:
+        data = self._sensordata.tolist()
+        for w, f, t in self._sensor_slots:
+            w[0], w[1], w[2] = -data[f], -data[f + 1], -data[f + 2]
+            w[3], w[4], w[5] = -data[t], -data[t + 1], -data[t + 2]
 
     def advance(self, period_s: float) -> None:
         if period_s != self._period_s:
@@ -94,13 +108,3 @@ def _steps(period_s: float, timestep_s: float) -> int:
             field="period_s", value=period_s,
         )
     return steps
-
-
-def _view(array: np.ndarray, adr: np.ndarray, world: MujocoWorld):
-    """A zero-argument function returning ``array[adr]`` as cheaply as possible."""
-    sl = world.contiguous(adr)
-    if sl is not None:
-        view = array[sl]
-        return lambda: view
-    idx = np.asarray(adr, dtype=int)
-    return lambda: array[idx]

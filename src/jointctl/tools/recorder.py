@@ -72,13 +72,11 @@ class TraceRecorder:
         self._countdown = self.every - 1
         hw = self.hardware
         values = self._values
-        values.append(time_s)
-        values.extend([c.reference for c in self._commanders])
-        values.extend(hw.position)
-        values.extend(hw.velocity)
-        values.extend(hw.effort)
+        row = [time_s, *[c.reference for c in self._commanders], *hw.position, *hw.velocity,
+               *hw.effort]
         for w in self._wrenches:
-            values.extend(w)
+            row += w
+        values.extend(row)
         if len(values) >= self._chunk_values:
             self.flush()
 
