@@ -255,11 +255,6 @@ def test_missing_package_in_find_is_named(top_xacro: Path) -> None:
     assert "not found" in str(info.value)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="loader.expand_xacro: xacro wraps the resolver's ModelError in XacroException, so the "
-    "`except ModelError` branch never runs; field/value are lost and the message is repeated",
-)
 def test_missing_package_in_find_keeps_the_resolver_error(top_xacro: Path) -> None:
     with pytest.raises(ModelError) as info:
         load_robot_model(top_xacro)

@@ -325,6 +325,10 @@ REFUSALS = [
      ["gazebo.plugin[ft].jointName", "does not exist", "'no_joint'"]),
     ("ft-sensor-rate-not-a-number", "<updateRate>250</updateRate>", "<updateRate>fast</updateRate>",
      ["gazebo.plugin[ft].updateRate", "not a number", "'fast'"]),
+    ("ft-sensor-rate-nan", "<updateRate>250</updateRate>", "<updateRate>nan</updateRate>",
+     ["gazebo.plugin[ft].updateRate", "positive", "'nan'"]),
+    ("ft-sensor-rate-negative", "<updateRate>250</updateRate>", "<updateRate>-5</updateRate>",
+     ["gazebo.plugin[ft].updateRate", "positive", "'-5'"]),
 ]
 
 

@@ -358,11 +358,6 @@ def test_unsupported_joint_types_are_refused(jtype: str) -> None:
     assert repr(jtype) in str(info.value)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="mjcf_builder: a locked joint becomes a weld at the joint origin; the locked value "
-    "(lower == upper != 0) is ignored, so the child sits 0.3 m too low",
-)
 def test_locked_joint_at_a_nonzero_value_keeps_its_offset() -> None:
     text = """<robot name="r"><link name="world"/>
       <link name="a"><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1"/></inertial></link>

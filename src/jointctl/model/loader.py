@@ -49,13 +49,25 @@ def expand_xacro(path: Path, resolver: PackageResolver, args: Mapping[str, str])
     with _find_resolver(substitution_args, resolver):
         try:
             doc = xacro.process_file(str(path), mappings=dict(args))
-        except ModelError as exc:
-            exc.source = exc.source or str(path)
-            raise
         except Exception as exc:  # xacro raises XacroException, XML and name errors
+            inner = _wrapped_model_error(exc)
+            if inner is not None:  # our $(find) resolver's error, wrapped by xacro
+                inner.source = inner.source or str(path)
+                raise inner from None
             detail = " ".join(str(exc).split())  # xacro's messages span lines
             raise ModelError(f"xacro failed: {detail}", source=str(path)) from None
     return doc.toxml()
+
+
+def _wrapped_model_error(exc: BaseException) -> ModelError | None:
+    """The ModelError inside xacro's exception wrapping (``.exc``, cause or context), if any."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, ModelError):
+            return exc
+        seen.add(id(exc))
+        exc = getattr(exc, "exc", None) or exc.__cause__ or exc.__context__
+    return None
 
 
 @contextlib.contextmanager

@@ -319,6 +319,9 @@ class _Parser:
                         except ValueError:
                             raise self.error("updateRate is not a number",
                                              f"{where}.updateRate", rate_text) from None
+                        if not math.isfinite(rate) or rate <= 0:
+                            raise self.error("updateRate must be a positive number",
+                                             f"{where}.updateRate", rate_text)
                     topic = (plugin.findtext("topicName") or "").strip() or None
                     sensors.append(SensorSpec(pname, "force_torque", joint_name,
                                               by_name[joint_name].child, topic, rate))

@@ -101,11 +101,30 @@ class _Builder:
 
     def add_children(self, body, link_name: str) -> None:
         for joint in self.robot.child_joints(link_name):
-            child = body.add_body(name=joint.child, pos=list(joint.origin.xyz),
-                                  quat=list(rpy_to_quat(joint.origin.rpy)))
+            pos, quat = self.child_frame(joint)
+            child = body.add_body(name=joint.child, pos=pos, quat=quat)
             self.add_joint(child, joint)
             self.add_link_contents(child, self.robot.link(joint.child))
             self.add_children(child, joint.child)
+
+    @staticmethod
+    def child_frame(joint: Joint) -> tuple[list[float], list[float]]:
+        """The child's frame in the parent's: the joint origin, moved by a locked joint's value."""
+        rotation = rpy_to_matrix(joint.origin.rpy)
+        pos = np.array(joint.origin.xyz, dtype=float)
+        if joint.is_locked and joint.limits.lower != 0.0:
+            axis = np.array(joint.axis)
+            if joint.is_prismatic:
+                pos = pos + rotation @ (axis * joint.limits.lower)
+            else:
+                turn = np.zeros(9)
+                quat_turn = np.zeros(4)
+                mujoco.mju_axisAngle2Quat(quat_turn, axis, joint.limits.lower)
+                mujoco.mju_quat2Mat(turn, quat_turn)
+                rotation = rotation @ turn.reshape(3, 3)
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, rotation.ravel())
+        return pos.tolist(), quat.tolist()
 
     def add_joint(self, body, joint: Joint) -> None:
         if joint.type in ("fixed",) or joint.is_locked:
