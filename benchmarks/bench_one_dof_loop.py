@@ -15,51 +15,59 @@ import time
 
 import mujoco
 
-from benchmarks.common import Result, child_peak_memory_mb, median_rate
+from benchmarks.common import Result, child_peak_memory_mb
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import load_scenario
 
 SIM_SECONDS = 10.0
 
 
-def bare_loop_rtf() -> float:
-    session = Session(load_scenario("one_dof_step"))
-    world = session.world
+REPEATS = 5
+
+
+def bare_loop(world) -> float:
+    """Real-time factor of the bare loop on ``world``'s compiled model (one run)."""
     m, d = world.model, world.data
     qpos, ctrl = d.qpos, d.ctrl
     steps = round(SIM_SECONDS / world.timestep_s)
-
-    def work() -> int:
-        world.reset()
-        for _ in range(steps):
-            ctrl[0] = 400.0 * (-0.5 - qpos[0])
-            mujoco.mj_step(m, d)
-        return steps
-
-    return median_rate(work) * world.timestep_s
+    world.reset()
+    start = time.perf_counter()
+    for _ in range(steps):
+        ctrl[0] = 400.0 * (-0.5 - qpos[0])
+        mujoco.mj_step(m, d)
+    return SIM_SECONDS / (time.perf_counter() - start)
 
 
-def whole_stack_rtf() -> tuple[float, float]:
-    """(loop real-time factor, end-to-end real-time factor).
+def whole_stack(scenario) -> tuple[float, float]:
+    """(loop real-time factor, end-to-end real-time factor) of one run.
 
     The loop figure times ``loop.run`` with the recorder spooling every cycle to
     disk; end to end adds building the session (xacro, MuJoCo compile) and
     writing trace.csv after the run.
     """
+    with tempfile.TemporaryDirectory() as out:
+        start = time.perf_counter()
+        session = Session(scenario, out_dir=out)
+        loop_start = time.perf_counter()
+        session.loop.run(SIM_SECONDS)
+        loop_end = time.perf_counter()
+        session.close()
+        end = time.perf_counter()
+    return SIM_SECONDS / (loop_end - loop_start), SIM_SECONDS / (end - start)
+
+
+def speeds() -> tuple[float, float, float]:
+    """Medians of bare, stack and end-to-end real-time factors, runs interleaved so that
+    a busy moment of a shared machine slows both sides alike."""
     scenario = load_scenario("one_dof_step", [f"duration_s={SIM_SECONDS}"])
-    loop_rates, total_rates = [], []
-    for _ in range(5):
-        with tempfile.TemporaryDirectory() as out:
-            start = time.perf_counter()
-            session = Session(scenario, out_dir=out)
-            loop_start = time.perf_counter()
-            session.loop.run(SIM_SECONDS)
-            loop_end = time.perf_counter()
-            session.close()
-            end = time.perf_counter()
-        loop_rates.append(SIM_SECONDS / (loop_end - loop_start))
-        total_rates.append(SIM_SECONDS / (end - start))
-    return statistics.median(loop_rates), statistics.median(total_rates)
+    world = Session(scenario).world
+    bare, stack, total = [], [], []
+    for _ in range(REPEATS):
+        bare.append(bare_loop(world))
+        loop_rtf, end_to_end = whole_stack(scenario)
+        stack.append(loop_rtf)
+        total.append(end_to_end)
+    return statistics.median(bare), statistics.median(stack), statistics.median(total)
 
 
 _MEMORY_RUN = """
@@ -75,8 +83,7 @@ result = {{"trace_mb": size / 2**20}}
 
 
 def run() -> list[Result]:
-    bare = bare_loop_rtf()
-    stack, end_to_end = whole_stack_rtf()
+    bare, stack, end_to_end = speeds()
     short = child_peak_memory_mb(_MEMORY_RUN.format(seconds=10))
     hour = child_peak_memory_mb(_MEMORY_RUN.format(seconds=3600))
     growth = hour["peak_rss_mb"] - short["peak_rss_mb"]

@@ -1,13 +1,10 @@
-"""Shared helpers of the benchmarks: repeated timing, results, peak memory of a child run."""
+"""Shared helpers of the benchmarks: the result row and the peak memory of a child run."""
 
 from __future__ import annotations
 
 import json
-import statistics
 import subprocess
 import sys
-import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 
@@ -21,16 +18,6 @@ class Result:
     unit: str
     target: str = ""
     ok: bool | None = None
-
-
-def median_rate(work: Callable[[], int], repeats: int = 5) -> float:
-    """Median over ``repeats`` of (units of work done) / (wall seconds); ``work`` returns its units."""
-    rates = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        units = work()
-        rates.append(units / (time.perf_counter() - start))
-    return statistics.median(rates)
 
 
 def child_peak_memory_mb(code: str) -> dict:

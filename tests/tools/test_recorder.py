@@ -47,7 +47,7 @@ def test_rows_spool_to_disk_in_chunks_and_the_spool_is_removed(write_scenario, t
     scenario = load_scenario(write_scenario(step_scenario(duration_s=0.1)))
     session = Session(scenario)
     recorder = TraceRecorder(tmp_path / "trace.csv", session.hardware,
-                             [session.manager.controller("joint1_position_controller")], chunk_rows=16)
+                             session.manager.references, chunk_rows=16)
     session.loop.add_observer(recorder)
     session.run()
     assert recorder.rows_written == 96  # six full chunks of 16 went to disk during the run
@@ -60,12 +60,12 @@ def test_rows_spool_to_disk_in_chunks_and_the_spool_is_removed(write_scenario, t
 def test_every_must_be_positive(write_scenario, tmp_path):
     session = Session(load_scenario(write_scenario(step_scenario())))
     with pytest.raises(ValueError, match="every"):
-        TraceRecorder(tmp_path / "t.csv", session.hardware, [None], every=0)
+        TraceRecorder(tmp_path / "t.csv", session.hardware, [float("nan")], every=0)
 
 
 def test_joint_without_a_controller_records_nan_command(write_scenario, tmp_path):
     session = Session(load_scenario(write_scenario(step_scenario())))
-    with TraceRecorder(tmp_path / "t.csv", session.hardware, [None]) as recorder:
+    with TraceRecorder(tmp_path / "t.csv", session.hardware, [float("nan")]) as recorder:
         session.loop.add_observer(recorder)
         session.loop.run(cycles=3)
     assert np.isnan(load_trace(tmp_path / "t.csv").joint("joint1", "command")).all()

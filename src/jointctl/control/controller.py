@@ -49,6 +49,9 @@ class Controller(ABC):
         self.name = name
         self.source = params.source
         self.field = params.field
+        #: One entry per hardware joint: the reference (desired position or velocity) of the
+        #: controller commanding it. Shared by the manager's controllers; set before configure().
+        self.references: list[float] | None = None
 
     @abstractmethod
     def claimed_interfaces(self) -> tuple[tuple[str, str], ...]:

@@ -34,8 +34,6 @@ class _EffortJointController(Controller):
             {}, source=params.source, field=params.path("pid"))
         params.reject_unknown({"type"})
         self.pid: Pid | None = None
-        #: The reference in use (position in m/rad or velocity in m/s, rad/s), after clamping.
-        self.reference = 0.0
 
     def claimed_interfaces(self) -> tuple[tuple[str, str], ...]:
         return ((self.joint, EFFORT),)
@@ -58,6 +56,13 @@ class _EffortJointController(Controller):
                        self.effort_limit)
         self.hardware = hardware
         self.effort_command = hardware.command_buffer(EFFORT)
+        if self.references is None:
+            self.references = [math.nan] * len(hardware.joint_names)
+
+    @property
+    def reference(self) -> float:
+        """The reference in use (position in m or rad, or velocity in m/s or rad/s), after clamping."""
+        return self.references[self.index]
 
     def set_gains(self, gains: PidGains) -> None:
         """Change the PID gains while running; applied at the next cycle."""
@@ -105,9 +110,9 @@ class JointPositionController(_EffortJointController):
         position, velocity = self._command
         lower, upper = self.lower, self.upper
         position = lower if position < lower else upper if position > upper else position
-        self.reference = position
-        hw = self.hardware
         i = self.index
+        self.references[i] = position
+        hw = self.hardware
         self.effort_command[i] = self.pid.compute(
             position - hw.position[i], velocity - hw.velocity[i], period_s)
 
@@ -141,8 +146,8 @@ class JointVelocityController(_EffortJointController):
         limit = self.velocity_limit
         velocity = self._command
         velocity = -limit if velocity < -limit else limit if velocity > limit else velocity
-        self.reference = velocity
         i = self.index
+        self.references[i] = velocity
         error = velocity - self.hardware.velocity[i]
         rate = (error - self._last_error) / period_s
         self._last_error = error

@@ -17,6 +17,7 @@ running controller claims the same ``(joint, interface)``.
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -76,6 +77,8 @@ class ControllerManager:
         #: The running controllers' update methods, in start order (read by the loop every cycle).
         self.update_calls: tuple = ()
         self.namespace: str | None = None
+        #: Per hardware joint, the reference of the controller commanding it (NaN when none).
+        self.references: list[float] = [math.nan] * len(hardware.joint_names)
 
     # -- definitions -------------------------------------------------------------
     def load_file(self, path: str | Path, overrides: Mapping[str, Any] | None = None) -> str | None:
@@ -152,6 +155,7 @@ class ControllerManager:
             raise params.error(f"unknown controller type (known: {', '.join(sorted(controller_types()))})",
                                "type", type_name)
         controller = cls(name, params)
+        controller.references = self.references
         controller.configure(self.hardware, self.robot)
         self._loaded[name] = controller
         return controller
@@ -187,6 +191,8 @@ class ControllerManager:
             if c is not None and c in self._active:
                 c.stop(time_s)
                 self._active.remove(c)
+                for joint in c.joints:
+                    self.references[self.hardware.joint_index(joint)] = math.nan
         self._refresh()
 
     @staticmethod

@@ -62,9 +62,8 @@ class Session:
         self.recorder: TraceRecorder | None = None
         self.out_dir = Path(out_dir) if out_dir is not None else None
         if self.out_dir is not None:
-            commanders = [self.manager.commanding(j) for j in self.hardware.joint_names]
-            self.recorder = TraceRecorder(self.out_dir / TRACE_FILE, self.hardware, commanders,
-                                          every=scenario.record_every)
+            self.recorder = TraceRecorder(self.out_dir / TRACE_FILE, self.hardware,
+                                          self.manager.references, every=scenario.record_every)
             self.loop.add_observer(self.recorder)
 
     @property

@@ -4,7 +4,7 @@ The recorder is a loop observer. Rows collect in memory and go to disk every
 ``chunk_rows`` rows, so memory stays flat however long the run; ``every``
 keeps one cycle in ``every`` (decimation). Columns are ``time_s`` then, per
 quantity, one column per joint: ``<joint>.command`` (the reference of the
-controller commanding the joint: a position or a velocity), ``<joint>.position``,
+controller commanding the joint: a position or a velocity; NaN when none), ``<joint>.position``,
 ``<joint>.velocity``, ``<joint>.effort``; then ``<sensor>.force_x`` ...
 ``<sensor>.torque_z`` for each force-torque sensor. SI units throughout.
 """
@@ -26,10 +26,6 @@ QUANTITIES = ("command", "position", "velocity", "effort")
 WRENCH_AXES = ("force_x", "force_y", "force_z", "torque_x", "torque_y", "torque_z")
 
 
-class _NoCommand:
-    reference = math.nan
-
-
 class TraceRecorder:
     """Streams one row per kept cycle to disk; ``close()`` writes ``trace.csv``.
 
@@ -43,7 +39,7 @@ class TraceRecorder:
         self,
         path: str | Path,
         hardware: HardwareInterface,
-        commanders: Sequence[object | None],
+        references: Sequence[float],
         *,
         every: int = 1,
         chunk_rows: int = 8192,
@@ -52,7 +48,7 @@ class TraceRecorder:
             raise ValueError(f"every must be at least 1, got {every}")
         self.path = Path(path)
         self.hardware = hardware
-        self._commanders = tuple(c if c is not None else _NoCommand() for c in commanders)
+        self._references = references
         self.every = every
         self.columns = trace_columns(hardware.joint_names, hardware.sensor_names)
         self.rows_written = 0
@@ -72,11 +68,9 @@ class TraceRecorder:
         self._countdown = self.every - 1
         hw = self.hardware
         values = self._values
-        row = [time_s, *[c.reference for c in self._commanders], *hw.position, *hw.velocity,
-               *hw.effort]
+        values.extend((time_s, *self._references, *hw.position, *hw.velocity, *hw.effort))
         for w in self._wrenches:
-            row += w
-        values.extend(row)
+            values.extend(w)
         if len(values) >= self._chunk_values:
             self.flush()
 
