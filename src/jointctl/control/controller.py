@@ -5,7 +5,9 @@ hardware (it resolves its joint names to indices and keeps references to the
 command lists it writes) and then updated every cycle with
 ``update(time_s, period_s)``. It declares the command interfaces it claims as
 ``(joint, interface)`` pairs; the manager never lets two running controllers
-claim the same one.
+claim the same one. A controller may write another controller's command
+(chaining, as ros2_control does): it names it in ``downstream``, claims
+``(that controller, "command")`` and runs before it in every cycle.
 """
 
 from __future__ import annotations
@@ -44,6 +46,8 @@ class Controller(ABC):
     type_name: ClassVar[str] = ""
     #: Joint names this controller commands; empty for broadcasters.
     joints: tuple[str, ...] = ()
+    #: Names of the controllers whose command this one writes (chaining); they run after it.
+    downstream: tuple[str, ...] = ()
 
     def __init__(self, name: str, params: Params) -> None:
         self.name = name
@@ -60,6 +64,9 @@ class Controller(ABC):
     @abstractmethod
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         """Resolve names against the hardware and the model; raise ConfigError if impossible."""
+
+    def bind_downstream(self, controllers: dict[str, Controller]) -> None:
+        """Receive the controllers named in ``downstream`` (called before start)."""
 
     def start(self, time_s: float) -> None:
         """Called when the controller starts running, before its first update."""

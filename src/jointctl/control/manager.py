@@ -179,6 +179,13 @@ class ControllerManager:
                         f"joint {joint!r} {interface} interface is already claimed by controller "
                         f"{owner[claim]!r}", field="controller", value=c.name)
                 owner[claim] = c.name
+        running = {c.name for c in self._active} | {c.name for c in controllers}
+        for c in controllers:
+            missing = [n for n in c.downstream if n not in running]
+            if missing:
+                raise ControllerError(f"a chained controller needs {', '.join(missing)} running with it",
+                                      field="controller", value=c.name)
+            c.bind_downstream({n: self.load(n) for n in c.downstream})
         for c in controllers:
             if c not in self._active:
                 c.start(time_s)
@@ -186,6 +193,12 @@ class ControllerManager:
         self._refresh()
 
     def stop(self, names: Iterable[str], time_s: float = 0.0) -> None:
+        names = list(names)
+        for c in self._active:
+            fed = [n for n in c.downstream if n in names]
+            if fed and c.name not in names:
+                raise ControllerError(f"controller {c.name!r} feeds it: stop both together",
+                                      field="controller", value=fed[0])
         for name in names:
             c = self._loaded.get(name)
             if c is not None and c in self._active:
@@ -200,6 +213,7 @@ class ControllerManager:
         return c.claimed_interfaces()
 
     def _refresh(self) -> None:
+        self._active = _upstream_first(self._active)
         self.update_calls = tuple(c.update for c in self._active)
 
     @property
@@ -213,6 +227,10 @@ class ControllerManager:
             raise ControllerError("no loaded controller of that name", field="controller",
                                   value=name) from None
 
+    def command_owner(self, controller_name: str) -> Controller | None:
+        """The running controller that writes ``controller_name``'s command (chaining), if any."""
+        return next((c for c in self._active if controller_name in c.downstream), None)
+
     def commanding(self, joint: str) -> Controller | None:
         """The running controller that commands ``joint``, if any."""
         return next((c for c in self._active if joint in c.joints), None)
@@ -221,6 +239,27 @@ class ControllerManager:
         """Update every running controller, in start order."""
         for call in self.update_calls:
             call(time_s, period_s)
+
+
+def _upstream_first(controllers: list[Controller]) -> list[Controller]:
+    """Order so every controller runs before the ones it feeds; otherwise keep start order."""
+    ordered: list[Controller] = []
+    by_name = {c.name: c for c in controllers}
+
+    def place(c: Controller, trail: tuple[str, ...]) -> None:
+        if c in ordered:
+            return
+        if c.name in trail:
+            raise ControllerError("chained controllers feed each other in a loop", field="controller",
+                                  value=" -> ".join(trail + (c.name,)))
+        for upstream in controllers:
+            if c.name in upstream.downstream:
+                place(upstream, trail + (c.name,))
+        ordered.append(c)
+
+    for c in controllers:
+        place(by_name[c.name], ())
+    return ordered
 
 
 __all__ = ["ControllerManager", "read_yaml", "set_dotted"]

@@ -24,6 +24,13 @@ class MujocoHardware(HardwareInterface):
     def __init__(self, world: MujocoWorld) -> None:
         super().__init__(world.joint_names, tuple(s.name for s in world.robot.sensors))
         self.world = world
+        self._effort_cmd = self.command_buffer(EFFORT)
+        self._bind()
+        world.on_rebuild(self._bind)
+
+    def _bind(self) -> None:
+        """Resolve addresses and cache views into the world's current MjData."""
+        world = self.world
         d = world.data
         actuated = world.actuator_ids >= 0
         self._actuated = frozenset(n for n, a in zip(world.joint_names, actuated) if a)
@@ -38,13 +45,13 @@ class MujocoHardware(HardwareInterface):
             self.read, self.write = self._read_contiguous, self._write_contiguous
         else:
             self.read, self.write = self._read_indexed, self._write_indexed
-        self._effort_cmd = self.command_buffer(EFFORT)
         self._sensordata = world.data.sensordata
         self._sensor_slots = tuple(
             (self.wrenches[name], *world.sensor_adr(name)) for name in self.sensor_names
         )
         self._model, self._data = world.model, world.data
         self._period_s, self._nstep = world.timestep_s, 1
+        self.write()  # carry the current commands into a freshly bound MjData
 
     def command_interfaces(self, joint: str) -> frozenset[str]:
         return frozenset({EFFORT}) if joint in self._actuated else frozenset()

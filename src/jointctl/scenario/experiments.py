@@ -8,6 +8,7 @@ from the model: moving mass, joint damping, controller gains, gravity).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -20,7 +21,7 @@ import numpy as np
 from jointctl.errors import ConfigError
 from jointctl.scenario.session import Session
 from jointctl.tools import figures
-from jointctl.tools.recorder import Trace
+from jointctl.tools.recorder import Trace, load_trace
 from jointctl.tools.response_analysis import (
     first_order_frequency_response,
     second_order_frequency_response,
@@ -166,12 +167,136 @@ def analyse_velocity_sine(session: Session, trace: Trace, out: Path, params: dic
             "plant": plant.__dict__}
 
 
+CONTACT_THRESHOLD_N = 1.0  # sensed force beyond the unloaded reading that counts as contact
+STEADY_WINDOW_S = 1.0      # steady values are means over the last second of the run
+
+
+def contact_episodes(force_z: np.ndarray, unloaded_n: float) -> int:
+    """Separate contact episodes: times the sensed load rises above the threshold."""
+    loaded = np.abs(force_z - unloaded_n) > CONTACT_THRESHOLD_N
+    return int(np.count_nonzero(loaded[1:] & ~loaded[:-1]) + (1 if loaded[0] else 0))
+
+
+def _object(session: Session, params: dict[str, Any]):
+    objects = session.scenario.objects
+    if not objects:
+        raise ConfigError("the analysis needs an object dropped on the robot",
+                          source=session.scenario.source, field="objects")
+    return objects[0]
+
+
+def _sensor(session: Session, params: dict[str, Any]) -> str:
+    sensor = params.get("sensor")
+    if sensor not in session.hardware.sensor_names:
+        raise ConfigError("names no force-torque sensor of the robot", source=session.scenario.source,
+                          field="analysis.sensor", value=sensor)
+    return sensor
+
+
+def _sensor_link_mass(session: Session, sensor: str) -> float:
+    """Mass [kg] the sensor carries when unloaded: its own link (the plate)."""
+    spec = next(s for s in session.robot.sensors if s.name == sensor)
+    inertial = session.robot.link(spec.link).inertial
+    return inertial.mass_kg if inertial else 0.0
+
+
+def analyse_drop_weight(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
+    """A weight dropped on the position-controlled robot: impacts, peak and steady forces (fig. 11.5)."""
+    joint, sensor, weight = _joint(session, params), _sensor(session, params), _object(session, params)
+    t = trace.time_s
+    effort, position = trace.joint(joint, "effort"), trace.joint(joint, "position")
+    force_z = trace[f"{sensor}.force_z"]
+    steady = t >= t[-1] - STEADY_WINDOW_S
+    before = (t < weight.spawn_at_s) & (t >= weight.spawn_at_s - 0.1)
+    plant = joint_plant(session, joint)
+    g = -plant.gravity_along_axis_m_s2
+    plate = _sensor_link_mass(session, sensor)
+    expected_effort = (plant.moving_mass_kg + weight.mass_kg) * g
+    metrics = {
+        "impacts": contact_episodes(force_z, float(force_z[before].mean())),
+        "peak_sensor_force_n": float(np.max(np.abs(force_z))),
+        "steady_effort_n": float(effort[steady].mean()),
+        "steady_sensor_force_z_n": float(force_z[steady].mean()),
+        "steady_position_m": float(position[steady].mean()),
+        "expected": {
+            "steady_effort_n": expected_effort,
+            "steady_sensor_force_z_n": -(weight.mass_kg + plate) * g,
+            "steady_position_m": float(trace.joint(joint, "command")[-1]) - expected_effort / plant.kp,
+        },
+        "plant": plant.__dict__,
+    }
+    name = session.scenario.name
+    figures.plot_series(out / "effort_and_force.png", t,
+                        {f"{joint} effort [N]": effort, f"{sensor} force z [N]": force_z},
+                        title=f"{name}: actuator effort and sensed force", ylabel="force [N]")
+    figures.plot_command_and_position(out / "position.png", t, trace.joint(joint, "command"), position,
+                                      title=f"{name}: {joint} position")
+    return metrics
+
+
+def analyse_nac_drop(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
+    """Natural admittance control catching a weight (fig. 11.6), and the same fed stale state."""
+    joint, sensor, weight = _joint(session, params), _sensor(session, params), _object(session, params)
+    nac = session.manager.controller(params.get("controller", ""))
+    t = trace.time_s
+    position, force_z = trace.joint(joint, "position"), trace[f"{sensor}.force_z"]
+    steady = t >= t[-1] - STEADY_WINDOW_S
+    before = (t < weight.spawn_at_s) & (t >= weight.spawn_at_s - 0.1)
+    rest_loaded = float(position[steady].mean())
+    rest_unloaded = float(position[before].mean())
+    force_loaded = float(force_z[steady].mean())
+    expected_loaded = nac.attractor + force_loaded / nac.stiffness
+    contact = np.flatnonzero(np.abs(force_z - force_z[before].mean()) > CONTACT_THRESHOLD_N)
+    first_contact = float(t[contact[0]]) if contact.size else math.nan
+    band = 0.02 * abs(rest_loaded - rest_unloaded)
+    outside = np.flatnonzero(np.abs(position - rest_loaded) > band)
+    settled_at = float(t[outside[-1] + 1]) if outside.size and outside[-1] + 1 < len(t) else math.nan
+    metrics: dict[str, Any] = {
+        "rest_position_unloaded_m": rest_unloaded,
+        "rest_position_loaded_m": rest_loaded,
+        "expected_rest_position_loaded_m": expected_loaded,
+        "steady_sensor_force_z_n": force_loaded,
+        "peak_sensor_force_n": float(np.max(np.abs(force_z))),
+        "settling_time_s": settled_at - first_contact,
+        "peak_to_peak_at_rest_m": float(np.ptp(position[steady])),
+        "expected": {"rest_position_loaded_m": expected_loaded,
+                     "rest_position_unloaded_m": nac.attractor + float(force_z[before].mean()) / nac.stiffness},
+    }
+    series = {"state at the loop rate": position}
+    stale_rate = params.get("compare_state_rate_hz")
+    if stale_rate is not None:
+        stale = _run_variant(session, out / f"state_{stale_rate:g}hz",
+                             {f"{nac.name}.state_rate_hz": stale_rate})
+        stale_position = stale.joint(joint, "position")
+        metrics["stale_state_rate_hz"] = float(stale_rate)
+        metrics["stale_state_peak_to_peak_at_rest_m"] = float(np.ptp(stale_position[steady]))
+        series[f"state sampled at {stale_rate:g} Hz"] = stale_position
+    name = session.scenario.name
+    figures.plot_series(out / "position.png", t, series, title=f"{name}: {joint} position",
+                        ylabel="position [m]")
+    figures.plot_series(out / "force.png", t, {f"{sensor} force z": force_z},
+                        title=f"{name}: sensed force", ylabel="force [N]")
+    return metrics
+
+
+def _run_variant(session: Session, out: Path, controller_overrides: dict[str, Any]) -> Trace:
+    """Run the session's scenario again with extra controller overrides; return its trace."""
+    scenario = dataclasses.replace(
+        session.scenario, analysis=None,
+        controller_overrides={**session.scenario.controller_overrides, **controller_overrides})
+    with Session(scenario, out_dir=out) as variant:
+        variant.run()
+    return load_trace(variant.trace_path)
+
+
 Analysis = Callable[[Session, Trace, Path, dict[str, Any]], dict[str, Any]]
 
 ANALYSES: dict[str, Analysis] = {
     "step_response": analyse_step,
     "sine_response": analyse_sine,
     "velocity_sine_response": analyse_velocity_sine,
+    "drop_weight": analyse_drop_weight,
+    "nac_drop": analyse_nac_drop,
 }
 
 

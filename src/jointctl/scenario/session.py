@@ -11,6 +11,7 @@ import math
 from pathlib import Path
 
 from jointctl.control.manager import ControllerManager
+from jointctl.errors import ConfigError
 from jointctl.hardware.mujoco_hardware import MujocoHardware
 from jointctl.model.loader import load_robot_model
 from jointctl.model.robot_model import RobotModel
@@ -55,10 +56,17 @@ class Session:
         for name, source in self.sources.items():
             source.sample(0.0)  # the first sample must evaluate, or the run is refused
         self.manager.start(scenario.start_controllers)
+        for name in self.sources:
+            owner = self.manager.command_owner(name)
+            if owner is not None:
+                raise ConfigError(f"controller {owner.name!r} already commands it", source=scenario.source,
+                                  field=f"commands.{name}", value=name)
         clock = WallClockPacer(speed) if realtime else SimulatedClock()
         self.loop = ControlLoop(self.hardware, self.manager, period_s=scenario.loop_period_s, clock=clock)
         for name, source in self.sources.items():
             self.loop.add_input(_feed(source, self.manager.controller(name)))
+        if scenario.objects:
+            self.loop.add_input(_spawner(self.world, scenario.objects))
         self.recorder: TraceRecorder | None = None
         self.out_dir = Path(out_dir) if out_dir is not None else None
         if self.out_dir is not None:
@@ -87,6 +95,17 @@ class Session:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _spawner(world: MujocoWorld, objects):
+    """A loop input that adds each object to the world once loop time reaches its spawn time."""
+    pending = sorted(objects, key=lambda o: o.spawn_at_s)
+
+    def spawn(time_s: float) -> None:
+        while pending and time_s + 1e-9 >= pending[0].spawn_at_s:
+            world.spawn(pending.pop(0))
+
+    return spawn
 
 
 def _feed(source: CommandSource, controller):

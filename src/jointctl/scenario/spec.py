@@ -16,6 +16,9 @@ live here::
     duration_s: 3.0
     commands:
       joint1_position_controller: {type: step, from: -0.2, to: -0.5, at: 0.5}
+    objects:                        # rigid bodies spawned at a given time
+      - {name: weight, shape: cylinder, radius_m: 0.05, length_m: 0.2, mass_kg: 10,
+         xyz: [0, 0, 4], spawn_at_s: 1.0}
     record: {every: 1}
     analysis: {type: step_response, joint: joint1}
 
@@ -36,11 +39,12 @@ import yaml
 from jointctl.control.manager import read_yaml, set_dotted
 from jointctl.errors import ConfigError
 from jointctl.paths import robots_dir, scenarios_dir
+from jointctl.sim.objects import ObjectSpec, object_from_config
 
 _KEYS = {
     "name", "description", "robot", "controller_file", "controllers", "start_controllers",
     "gravity", "timestep_s", "loop_rate_hz", "floor", "initial_positions", "duration_s",
-    "commands", "record", "analysis",
+    "commands", "record", "analysis", "objects",
 }
 _DESCRIPTION_SUFFIXES = (".xacro", ".urdf")
 
@@ -72,6 +76,7 @@ class Scenario:
     initial_positions: dict[str, float]
     duration_s: float
     commands: dict[str, dict[str, Any]]
+    objects: tuple[ObjectSpec, ...]
     record_every: int
     analysis: dict[str, Any] | None
     description: str = ""
@@ -216,11 +221,24 @@ class _Validator:
             initial_positions=dict(initial),
             duration_s=self.number("duration_s", positive=True),
             commands=commands,
+            objects=self.objects(floor),
             record_every=every,
             analysis=analysis,
             description=str(raw.get("description", "")).strip(),
             raw=raw,
         )
+
+    def objects(self, floor: bool) -> tuple[ObjectSpec, ...]:
+        value = self.raw.get("objects") or []
+        if not isinstance(value, list):
+            raise self.error("must be a list of objects", "objects", value)
+        objects = tuple(object_from_config(cfg, field=f"objects[{k}]", source=self.source, floor=floor)
+                        for k, cfg in enumerate(value))
+        names = [o.name for o in objects]
+        for k, name in enumerate(names):
+            if name in names[:k]:
+                raise self.error("two objects have the same name", f"objects[{k}].name", name)
+        return objects
 
     def gravity(self, value: Any) -> tuple[float, float, float]:
         if isinstance(value, list):

@@ -8,14 +8,18 @@ are in the URDF's units (m for prismatic, rad for revolute joints).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import mujoco
 import numpy as np
 
 from jointctl.errors import ConfigError, ModelError
 from jointctl.model.robot_model import RobotModel
-from jointctl.sim.mjcf_builder import WorldSettings, build_spec, sensor_site_name
+from jointctl.sim.mjcf_builder import WorldSettings, build_spec, rpy_to_quat, sensor_site_name
+from jointctl.sim.objects import ObjectSpec
+
+_GEOM = {"cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER, "box": mujoco.mjtGeom.mjGEOM_BOX,
+         "sphere": mujoco.mjtGeom.mjGEOM_SPHERE}
 
 
 class MujocoWorld:
@@ -43,6 +47,13 @@ class MujocoWorld:
             raise ModelError(f"MuJoCo refused the model: {exc}", source=robot.source) from None
         self.data = mujoco.MjData(self.model)
         self.joint_names: tuple[str, ...] = tuple(j.name for j in robot.movable_joints)
+        self._resolve_addresses()
+        self.initial_positions = self._check_initial(initial_positions or {}, source)
+        self.spawned: list[ObjectSpec] = []
+        self._rebuild_listeners: list[Callable[[], None]] = []
+        self.reset()
+
+    def _resolve_addresses(self) -> None:
         m = self.model
         jids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in self.joint_names]
         self.qpos_adr = np.array([m.jnt_qposadr[j] for j in jids], dtype=int)
@@ -51,8 +62,38 @@ class MujocoWorld:
             [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, n) for n in self.joint_names],
             dtype=int,
         )
-        self.initial_positions = self._check_initial(initial_positions or {}, source)
-        self.reset()
+
+    def on_rebuild(self, listener: Callable[[], None]) -> None:
+        """Call ``listener`` after ``model``/``data`` are replaced (an object was spawned)."""
+        self._rebuild_listeners.append(listener)
+
+    def spawn(self, obj: ObjectSpec) -> None:
+        """Add ``obj`` as a free body at its pose, at rest, keeping the current state of
+        everything else (MuJoCo recompiles the model and copies the state across)."""
+        if self.spec.body(obj.name) is not None:
+            raise ConfigError("an object or link of that name already exists", field="objects.name",
+                              value=obj.name)
+        body = self.spec.worldbody.add_body(
+            name=obj.name, pos=list(obj.xyz), quat=list(rpy_to_quat(obj.rpy)), mass=obj.mass_kg,
+            inertia=list(obj.principal_inertia), explicitinertial=True)
+        body.add_freejoint(name=f"{obj.name}_free")
+        body.add_geom(name=f"{obj.name}_geom", type=_GEOM[obj.shape], size=obj.mujoco_size,
+                      friction=[obj.friction, 0.005, 0.0001], rgba=[0.6, 0.3, 0.2, 1.0])
+        try:
+            self.model, self.data = self.spec.recompile(self.model, self.data)
+        except Exception as exc:
+            raise ConfigError(f"MuJoCo refused the object: {exc}", field="objects", value=obj.name) from None
+        self.spawned.append(obj)
+        self._resolve_addresses()
+        for listener in self._rebuild_listeners:
+            listener()
+
+    def body_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """World position [m] and orientation quaternion (w, x, y, z) of body ``name``."""
+        bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if bid < 0:
+            raise ConfigError("no body of that name", field="body", value=name)
+        return self.data.xpos[bid].copy(), self.data.xquat[bid].copy()
 
     def _check_initial(self, positions: Mapping[str, float], source: str | None) -> dict[str, float]:
         checked = {}
