@@ -119,7 +119,8 @@ def test_one_dof_masses_from_the_xacro_macro() -> None:
     assert disk.inertia[0] == pytest.approx(ixx, rel=1e-12)
     assert disk.inertia[1] == pytest.approx(ixx, rel=1e-12)
     assert disk.inertia[2] == pytest.approx(0.01 * 0.05**2 / 2, rel=1e-12)
-    assert disk.origin.xyz == pytest.approx((0.0, 0.0, -0.0025), abs=1e-15)
+    # the disk sits on the piston: its centre half a thickness above the sensor frame
+    assert disk.origin.xyz == pytest.approx((0.0, 0.0, 0.0025), abs=1e-15)
 
 
 def test_expand_xacro_gives_urdf_text() -> None:
