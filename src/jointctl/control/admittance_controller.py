@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 from jointctl.control.controller import Controller, register_controller
+from jointctl.control.joint_controllers import JointVelocityController
 from jointctl.control.params import Params
 from jointctl.errors import ConfigError
 from jointctl.hardware.interface import HardwareInterface
@@ -71,7 +72,7 @@ class AdmittanceController(Controller):
     def bind_downstream(self, controllers: dict[str, Controller]) -> None:
         """Receive the velocity controller this controller commands."""
         target = controllers[self.velocity_controller]
-        if not hasattr(target, "set_command") or target.joints != (self.joint,):
+        if not isinstance(target, JointVelocityController) or target.joints != (self.joint,):
             raise ConfigError("must name a velocity controller of the same joint", source=self.source,
                               field=f"{self.field}.velocity_controller", value=self.velocity_controller)
         self.target = target
@@ -79,6 +80,7 @@ class AdmittanceController(Controller):
     def set_gains(self, *, mass: float | None = None, stiffness: float | None = None,
                   damping: float | None = None) -> None:
         """Change M, K or B while running (validated; applied at the next cycle)."""
+        changes = {}
         for name, value, positive in (("mass", mass, True), ("stiffness", stiffness, False),
                                       ("damping", damping, False)):
             if value is None:
@@ -87,9 +89,12 @@ class AdmittanceController(Controller):
                     or value < 0 or (positive and value == 0):
                 raise ConfigError("must be a finite number" + (" above zero" if positive else " >= 0"),
                                   source=self.name, field=name, value=value)
-            setattr(self, name, float(value))
+            changes[name] = float(value)
+        for name, value in changes.items():  # all or nothing
+            setattr(self, name, value)
 
     def start(self, time_s: float) -> None:
+        self.hardware.read()
         self.velocity_reference = 0.0
         self._next_sample_s = time_s
         self._sample(time_s)

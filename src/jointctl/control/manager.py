@@ -186,6 +186,8 @@ class ControllerManager:
                 raise ControllerError(f"a chained controller needs {', '.join(missing)} running with it",
                                       field="controller", value=c.name)
             c.bind_downstream({n: self.load(n) for n in c.downstream})
+        new = [c for c in controllers if c not in self._active]
+        _upstream_first(self._active + new)  # refuses a chain loop before anything starts
         for c in controllers:
             if c not in self._active:
                 c.start(time_s)

@@ -43,6 +43,10 @@ class Session:
         settings = WorldSettings(scenario.timestep_s, scenario.gravity_m_s2, scenario.floor)
         self.world = MujocoWorld(self.robot, settings, initial_positions=scenario.initial_positions,
                                  source=scenario.source)
+        for k, obj in enumerate(scenario.objects):
+            if self.world.has_body(obj.name):
+                raise ConfigError("a link of the robot already has that name", source=scenario.source,
+                                  field=f"objects[{k}].name", value=obj.name)
         self.hardware = MujocoHardware(self.world)
         self.manager = ControllerManager(self.hardware, self.robot)
         self.manager.load_file(scenario.controller_file, scenario.controller_overrides)

@@ -67,10 +67,13 @@ class MujocoWorld:
         """Call ``listener`` after ``model``/``data`` are replaced (an object was spawned)."""
         self._rebuild_listeners.append(listener)
 
+    def has_body(self, name: str) -> bool:
+        return self.spec.body(name) is not None
+
     def spawn(self, obj: ObjectSpec) -> None:
         """Add ``obj`` as a free body at its pose, at rest, keeping the current state of
         everything else (MuJoCo recompiles the model and copies the state across)."""
-        if self.spec.body(obj.name) is not None:
+        if self.has_body(obj.name):
             raise ConfigError("an object or link of that name already exists", field="objects.name",
                               value=obj.name)
         body = self.spec.worldbody.add_body(
@@ -83,6 +86,7 @@ class MujocoWorld:
             self.model, self.data = self.spec.recompile(self.model, self.data)
         except Exception as exc:
             raise ConfigError(f"MuJoCo refused the object: {exc}", field="objects", value=obj.name) from None
+        mujoco.mj_forward(self.model, self.data)  # derived quantities (poses, forces, sensors) now
         self.spawned.append(obj)
         self._resolve_addresses()
         for listener in self._rebuild_listeners:
