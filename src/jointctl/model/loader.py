@@ -15,7 +15,7 @@ from pathlib import Path
 
 from jointctl.errors import ModelError
 from jointctl.model.package_paths import PackageResolver
-from jointctl.model.robot_model import Geometry, Link, RobotModel, Shape
+from jointctl.model.robot_model import Link, RobotModel, Shape
 from jointctl.model.urdf_parser import parse_urdf
 
 

@@ -57,7 +57,7 @@ def joint_plant(session: Session, joint: str) -> JointPlant:
         mass = float(m.body_subtreemass[body])
     else:  # inertia about the axis, from the joint-space mass matrix
         full = np.zeros((m.nv, m.nv))
-        mujoco.mj_fullM(m, full, d.qM) if hasattr(d, "qM") else mujoco.mj_fullM(m, d, full)
+        mujoco.mj_fullM(m, d, full)
         dof = m.jnt_dofadr[jid]
         mass = float(full[dof, dof])
     axis = np.array(d.xaxis[jid])
@@ -105,9 +105,8 @@ def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, An
                                       title=f"{session.scenario.name}: {joint} step response")
     figures.plot_command_and_position(out / "position_zoom.png", t, cmd, pos, zoom=zoom,
                                       title=f"{session.scenario.name}: {joint} step (zoom)")
-    figures.plot_series(out / "effort.png", t, {f"{joint} effort": trace.joint(joint, "effort")},
-                        title=f"{session.scenario.name}: {joint} effort", ylabel="effort [N]")
-    metrics = {k: v for k, v in result.as_dict().items()}
+    _plot_effort(session, trace, out, joint)
+    metrics = result.as_dict()
     return {**metrics, "expected": expected, "plant": plant.__dict__}
 
 
@@ -120,22 +119,31 @@ def _sine_frequency_hz(session: Session, joint: str, cfg: dict[str, Any], params
                       source=session.scenario.source, field="analysis.frequency_hz")
 
 
+def _sine_fit(session: Session, trace: Trace, params: dict[str, Any], quantity: str,
+              default_start_s: float):
+    """Fit the command and the joint's ``quantity`` at the drive frequency."""
+    joint = _joint(session, params)
+    freq = _sine_frequency_hz(session, joint, _command_config(session, joint), params)
+    t = trace.time_s
+    command, signal = trace.joint(joint, "command"), trace.joint(joint, quantity)
+    result = sinusoid_response(t, command, signal, frequency_hz=freq,
+                               start_s=float(params.get("start_s", default_start_s)))
+    return joint, freq, t, command, signal, result, joint_plant(session, joint)
+
+
+def _plot_effort(session: Session, trace: Trace, out: Path, joint: str) -> None:
+    figures.plot_series(out / "effort.png", trace.time_s, {f"{joint} effort": trace.joint(joint, "effort")},
+                        title=f"{session.scenario.name}: {joint} effort", ylabel="effort [N]")
+
+
 def analyse_sine(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
     """Position loop driven by a sinusoid: amplitude ratio and phase lag at the drive frequency."""
-    joint = _joint(session, params)
-    cfg = _command_config(session, joint)
-    freq = _sine_frequency_hz(session, joint, cfg, params)
-    start = float(params.get("start_s", 1.0))
-    t = trace.time_s
-    cmd, pos = trace.joint(joint, "command"), trace.joint(joint, "position")
-    result = sinusoid_response(t, cmd, pos, frequency_hz=freq, start_s=start)
-    plant = joint_plant(session, joint)
+    joint, freq, t, cmd, pos, result, plant = _sine_fit(session, trace, params, "position", 1.0)
     ratio, lag = second_order_frequency_response(plant.moving_mass_kg, plant.kp,
                                                  plant.damping + plant.kd, 2 * math.pi * freq)
     figures.plot_command_and_position(out / "position.png", t, cmd, pos,
                                       title=f"{session.scenario.name}: {joint} sine tracking")
-    figures.plot_series(out / "effort.png", t, {f"{joint} effort": trace.joint(joint, "effort")},
-                        title=f"{session.scenario.name}: {joint} effort", ylabel="effort [N]")
+    _plot_effort(session, trace, out, joint)
     return {"phase_lag_deg": result.phase_lag_deg, "amplitude_ratio": result.amplitude_ratio,
             "frequency_hz": freq, "periods_used": result.periods_used,
             "expected": {"phase_lag_deg": float(lag), "amplitude_ratio": float(ratio)},
@@ -144,14 +152,7 @@ def analyse_sine(session: Session, trace: Trace, out: Path, params: dict[str, An
 
 def analyse_velocity_sine(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
     """Velocity loop driven by a sinusoid: first-order gain and phase lag."""
-    joint = _joint(session, params)
-    cfg = _command_config(session, joint)
-    freq = _sine_frequency_hz(session, joint, cfg, params)
-    start = float(params.get("start_s", 0.5))
-    t = trace.time_s
-    cmd, vel = trace.joint(joint, "command"), trace.joint(joint, "velocity")
-    result = sinusoid_response(t, cmd, vel, frequency_hz=freq, start_s=start)
-    plant = joint_plant(session, joint)
+    joint, freq, t, cmd, vel, result, plant = _sine_fit(session, trace, params, "velocity", 0.5)
     ratio, lag = first_order_frequency_response(plant.moving_mass_kg, plant.kp, plant.damping,
                                                 2 * math.pi * freq)
     figures.plot_command_and_position(out / "velocity.png", t, cmd, vel, ylabel="velocity [m/s]",
@@ -159,8 +160,7 @@ def analyse_velocity_sine(session: Session, trace: Trace, out: Path, params: dic
                                       title=f"{session.scenario.name}: {joint} velocity tracking")
     figures.plot_series(out / "position.png", t, {f"{joint} position": trace.joint(joint, "position")},
                         title=f"{session.scenario.name}: {joint} position", ylabel="position [m]")
-    figures.plot_series(out / "effort.png", t, {f"{joint} effort": trace.joint(joint, "effort")},
-                        title=f"{session.scenario.name}: {joint} effort", ylabel="effort [N]")
+    _plot_effort(session, trace, out, joint)
     return {"velocity_amplitude_ratio": result.amplitude_ratio,
             "velocity_phase_lag_deg": result.phase_lag_deg, "frequency_hz": freq,
             "expected": {"velocity_amplitude_ratio": float(ratio), "velocity_phase_lag_deg": float(lag)},

@@ -12,7 +12,6 @@ controller commanding the joint: a position or a velocity; NaN when none), ``<jo
 from __future__ import annotations
 
 import csv
-import math
 from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass
