@@ -98,7 +98,7 @@ def test_position_effort_d_acts_on_velocity_error(hardware, robot) -> None:
     c.update(0.0, DT)
     # 400 * (-0.5 + 0.2) + 20 * (0.1 - 0.3) = -120 - 4
     assert effort(hardware) == pytest.approx(-124.0)
-    assert c.command == (-0.5, 0.1)
+    assert c.command == (-0.5, 0.1, 0.0)
 
 
 def test_position_step_has_no_derivative_kick(hardware, robot) -> None:
@@ -128,7 +128,7 @@ def test_position_command_clamped_to_joint_limits(hardware, chapter_position, co
     chapter_position.set_command(command)
     chapter_position.update(0.0, DT)
     assert chapter_position.reference == reference
-    assert chapter_position.command == (command, 0.0)  # the command is kept as given
+    assert chapter_position.command == (command, 0.0, 0.0)  # the command is kept as given
     assert effort(hardware) == pytest.approx(expected_effort)
 
 
@@ -154,7 +154,7 @@ def test_position_start_holds_the_current_position(hardware, chapter_position) -
     reads = hardware.reads
     c.start(0.0)
     assert hardware.reads == reads + 1  # it reads the hardware before taking the position
-    assert c.command == (-0.37, 0.0)
+    assert c.command == (-0.37, 0.0, 0.0)
     hardware.velocity[0] = 0.0
     c.update(0.0, DT)
     assert c.reference == -0.37
@@ -181,19 +181,19 @@ def test_position_set_command_refuses_non_finite_numbers(chapter_position, bad) 
         c.set_command(bad)
     assert info.value.field == "command.position"
     assert info.value.source == "joint1_position_controller"
-    assert c.command == (-0.4, 0.05)
+    assert c.command == (-0.4, 0.05, 0.0)
     with pytest.raises(InvalidCommand) as info:
         c.set_command(-0.1, bad)
     assert info.value.field == "command.velocity"
-    assert c.command == (-0.4, 0.05)  # neither half of the refused command was taken
+    assert c.command == (-0.4, 0.05, 0.0)  # neither half of the refused command was taken
 
 
 def test_position_set_command_accepts_ints_and_numpy_floats(chapter_position) -> None:
     c = chapter_position
     c.set_command(0)
-    assert c.command == (0.0, 0.0) and type(c.command[0]) is float
+    assert c.command == (0.0, 0.0, 0.0) and type(c.command[0]) is float
     c.set_command(np.float64(-0.25), np.float64(0.5))
-    assert c.command == (-0.25, 0.5)
+    assert c.command == (-0.25, 0.5, 0.0)
 
 
 def test_position_controller_closes_the_loop_on_a_double_integrator(hardware, robot) -> None:

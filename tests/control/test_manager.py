@@ -303,7 +303,7 @@ def test_starting_a_running_controller_again_does_not_restart_it(both, hardware)
     pos = both.controller(POS)
     pos.set_command(-0.8)
     both.start([POS])
-    assert pos.command == (-0.8, 0.0)  # not reset to "hold where it is"
+    assert pos.command == (-0.8, 0.0, 0.0)  # not reset to "hold where it is"
     assert [c.name for c in both.active] == [POS]
 
 
@@ -373,7 +373,7 @@ def test_position_control_of_the_mujoco_piston(robot) -> None:
     manager.load_file(POSITION_YAML)
     manager.start([JSC, POS])
     pos = manager.commanding("joint1")
-    assert pos.command == (pytest.approx(-0.2), 0.0)  # holds where it starts
+    assert pos.command == (pytest.approx(-0.2), 0.0, 0.0)  # holds where it starts
     samples = []
     manager.controller(JSC).subscribe(samples.append)
     pos.set_command(-0.5)

@@ -16,6 +16,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import ClassVar
 
+from jointctl.control.context import ControlContext
 from jointctl.control.params import Params
 from jointctl.hardware.interface import HardwareInterface
 from jointctl.model.robot_model import RobotModel
@@ -53,9 +54,8 @@ class Controller(ABC):
         self.name = name
         self.source = params.source
         self.field = params.field
-        #: One entry per hardware joint: the reference (desired position or velocity) of the
-        #: controller commanding it. Shared by the manager's controllers; set before configure().
-        self.references: list[float] | None = None
+        #: Shared with the manager's other controllers; set by the manager before configure().
+        self.context: ControlContext | None = None
 
     @abstractmethod
     def claimed_interfaces(self) -> tuple[tuple[str, str], ...]:

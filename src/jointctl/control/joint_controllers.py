@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import numbers
 
+from jointctl.control.context import ControlContext
 from jointctl.control.controller import Controller, register_controller
 from jointctl.control.params import Params
 from jointctl.control.pid import Pid, PidGains
@@ -56,8 +57,9 @@ class _EffortJointController(Controller):
                        self.effort_limit)
         self.hardware = hardware
         self.effort_command = hardware.command_buffer(EFFORT)
-        if self.references is None:
-            self.references = [math.nan] * len(hardware.joint_names)
+        if self.context is None:  # built outside a manager
+            self.context = ControlContext(hardware, robot)
+        self.references = self.context.references
 
     @property
     def reference(self) -> float:
@@ -78,43 +80,83 @@ class _EffortJointController(Controller):
         return float(value)
 
 
+FEEDFORWARD_TERMS = ("gravity", "damping", "inertia")
+
+
 @register_controller("effort_controllers/JointPositionController")
 class JointPositionController(_EffortJointController):
-    """Effort from a PID on position error; ``d`` acts on the velocity error.
+    """Effort from a PID on position error, plus optional model-based feed-forward.
 
     The derivative term uses ``velocity_reference - measured velocity`` (zero
     reference unless one is given), not a finite difference of the position
-    error: no derivative kick on steps, no differencing noise. On start the
+    error: no derivative kick on steps, no differencing noise; so a velocity
+    reference acts as velocity feed-forward through ``d``. On start the
     controller holds the joint where it is.
+
+    ``feedforward: {gravity: true, damping: true, inertia: true}`` adds, from the
+    robot model: the effort holding the measured pose against gravity, the
+    joint damping ``b·q̇_ref``, and ``M(q)·q̈_ref`` for the acceleration
+    reference. The sum is clamped to the joint's effort limit.
     """
+
+    def __init__(self, name: str, params: Params) -> None:
+        self._ff_params = params.child("feedforward") if params.has("feedforward") else None
+        super().__init__(name, params)
+        ff = self._ff_params
+        self.feedforward_terms = tuple(t for t in FEEDFORWARD_TERMS if ff is not None and ff.boolean(t, False))
+        if ff is not None:
+            ff.reject_unknown()
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         super().configure(hardware, robot)
-        self._command = (0.0, 0.0)
+        self._command = (0.0, 0.0, 0.0)
+        self.joint_damping = robot.joint(self.joint).damping
+        self._gravity = "gravity" in self.feedforward_terms
+        self._damping = "damping" in self.feedforward_terms
+        self._inertia = "inertia" in self.feedforward_terms
+        self._model = self.context.feedforward if (self._gravity or self._inertia) else None
+        self._accelerations = self.context.acceleration_references
 
-    def set_command(self, position: float, velocity: float = 0.0) -> None:
-        """Command a position [m or rad] and optionally a velocity feed-forward [m/s or rad/s]."""
-        self._command = (self._finite(position, "command.position"),
-                         self._finite(velocity, "command.velocity"))
+    def set_command(self, position: float, velocity: float = 0.0, acceleration: float = 0.0) -> None:
+        """Command a position [m or rad], with optional velocity [/s] and acceleration [/s²] references."""
+        command = (self._finite(position, "command.position"), self._finite(velocity, "command.velocity"),
+                   self._finite(acceleration, "command.acceleration"))
+        self._command = command
+        self._accelerations[self.index] = command[2]
 
     @property
-    def command(self) -> tuple[float, float]:
+    def command(self) -> tuple[float, float, float]:
         return self._command
 
     def start(self, time_s: float) -> None:
         self.hardware.read()
-        self._command = (self.hardware.position[self.index], 0.0)
+        self._command = (self.hardware.position[self.index], 0.0, 0.0)
+        self._accelerations[self.index] = 0.0
         self.pid.reset()
 
     def update(self, time_s: float, period_s: float) -> None:
-        position, velocity = self._command
+        position, velocity, _ = self._command
         lower, upper = self.lower, self.upper
         position = lower if position < lower else upper if position > upper else position
         i = self.index
         self.references[i] = position
         hw = self.hardware
-        self.effort_command[i] = self.pid.compute(
-            position - hw.position[i], velocity - hw.velocity[i], period_s)
+        effort = self.pid.compute(position - hw.position[i], velocity - hw.velocity[i], period_s)
+        if self.feedforward_terms:
+            effort += self._feedforward(time_s, velocity)
+            limit = self.effort_limit
+            effort = limit if effort > limit else -limit if effort < -limit else effort
+        self.effort_command[i] = effort
+
+    def _feedforward(self, time_s: float, velocity: float) -> float:
+        i, effort = self.index, 0.0
+        if self._gravity:
+            effort += self._model.gravity(time_s)[i]
+        if self._damping:
+            effort += self.joint_damping * velocity
+        if self._inertia:
+            effort += self._model.inertia(time_s)[i]
+        return effort
 
 
 @register_controller("effort_controllers/JointVelocityController")

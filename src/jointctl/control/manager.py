@@ -24,6 +24,7 @@ from typing import Any
 
 import yaml
 
+from jointctl.control.context import ControlContext
 from jointctl.control.controller import Controller, controller_types
 from jointctl.control.params import Params
 from jointctl.errors import ConfigError, ControllerError
@@ -68,9 +69,11 @@ def set_dotted(tree: dict, dotted: str, value: Any, *, source: str | None, field
 class ControllerManager:
     """Loads, starts, stops and updates controllers against one hardware interface."""
 
-    def __init__(self, hardware: HardwareInterface, robot: RobotModel) -> None:
+    def __init__(self, hardware: HardwareInterface, robot: RobotModel,
+                 gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)) -> None:
         self.hardware = hardware
         self.robot = robot
+        self.context = ControlContext(hardware, robot, gravity_m_s2)
         self._definitions: dict[str, Params] = {}
         self._loaded: dict[str, Controller] = {}
         self._active: list[Controller] = []
@@ -78,7 +81,7 @@ class ControllerManager:
         self.update_calls: tuple = ()
         self.namespace: str | None = None
         #: Per hardware joint, the reference of the controller commanding it (NaN when none).
-        self.references: list[float] = [math.nan] * len(hardware.joint_names)
+        self.references: list[float] = self.context.references
 
     # -- definitions -------------------------------------------------------------
     def load_file(self, path: str | Path, overrides: Mapping[str, Any] | None = None) -> str | None:
@@ -155,7 +158,7 @@ class ControllerManager:
             raise params.error(f"unknown controller type (known: {', '.join(sorted(controller_types()))})",
                                "type", type_name)
         controller = cls(name, params)
-        controller.references = self.references
+        controller.context = self.context
         controller.configure(self.hardware, self.robot)
         self._loaded[name] = controller
         return controller

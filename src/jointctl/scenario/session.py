@@ -48,7 +48,7 @@ class Session:
                 raise ConfigError("a link of the robot already has that name", source=scenario.source,
                                   field=f"objects[{k}].name", value=obj.name)
         self.hardware = MujocoHardware(self.world)
-        self.manager = ControllerManager(self.hardware, self.robot)
+        self.manager = ControllerManager(self.hardware, self.robot, scenario.gravity_m_s2)
         self.manager.load_file(scenario.controller_file, scenario.controller_overrides)
         # Command sources are checked before any controller starts: nothing moves on bad input.
         self.sources: dict[str, CommandSource] = {

@@ -1,0 +1,58 @@
+"""Rigid-body dynamics of the robot model, for model-based feed-forward.
+
+:class:`RobotDynamics` compiles the robot's own MuJoCo model (no world, no
+objects) into a private ``MjData`` and answers inverse-dynamics questions
+about it. It never touches the simulated world, so controllers can use it
+on real hardware too: it is the URDF's model, computed with MuJoCo.
+Joint order is the robot's movable joints in document order; SI units.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from jointctl.model.robot_model import RobotModel
+from jointctl.sim.mjcf_builder import WorldSettings, build_spec
+
+
+class RobotDynamics:
+    """Inverse dynamics ``tau = M(q)·qdd + g(q)`` of a robot under ``gravity_m_s2``."""
+
+    def __init__(self, robot: RobotModel, gravity_m_s2=(0.0, 0.0, -9.81)) -> None:
+        spec = build_spec(robot, WorldSettings(gravity_m_s2=tuple(gravity_m_s2), floor=False))
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self.joint_names = tuple(j.name for j in robot.movable_joints)
+        m = self.model
+        jids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in self.joint_names]
+        self.qpos_adr = np.array([m.jnt_qposadr[j] for j in jids], dtype=int)
+        self.dof_adr = np.array([m.jnt_dofadr[j] for j in jids], dtype=int)
+        self.damping = m.dof_damping[self.dof_adr].copy()
+        self._tau = np.zeros(m.nv)
+
+    def inverse_dynamics(self, q, qdd=None) -> np.ndarray:
+        """Joint efforts [N or N·m] holding the robot at ``q`` with acceleration ``qdd``
+        (zero velocity): ``M(q)·qdd + g(q)``."""
+        m, d = self.model, self.data
+        d.qpos[self.qpos_adr] = q
+        d.qvel[:] = 0.0
+        d.qacc[:] = 0.0
+        if qdd is not None:
+            d.qacc[self.dof_adr] = qdd
+        mujoco.mj_fwdPosition(m, d)
+        mujoco.mj_rne(m, d, 1, self._tau)
+        return self._tau[self.dof_adr].copy()
+
+    def gravity(self, q) -> np.ndarray:
+        """Efforts that hold the robot still at ``q`` against gravity: g(q)."""
+        return self.inverse_dynamics(q)
+
+    def mass_matrix(self, q) -> np.ndarray:
+        """The joint-space inertia matrix M(q) [kg or kg·m²]."""
+        m, d = self.model, self.data
+        d.qpos[self.qpos_adr] = q
+        mujoco.mj_fwdPosition(m, d)
+        full = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, full)
+        return full[np.ix_(self.dof_adr, self.dof_adr)]

@@ -1,0 +1,1 @@
+"""Joint trajectories: messages, validation, interpolation, timing and the executor."""
