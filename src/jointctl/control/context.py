@@ -18,7 +18,8 @@ from jointctl.model.robot_model import RobotModel
 
 
 class ModelFeedforward:
-    """Gravity ``g(q)`` and inertia ``M(q)·q̈_ref`` efforts at the measured ``q``, cached per cycle."""
+    """Gravity ``g(q)`` and inertia ``M(q)·q̈_ref`` efforts at the measured ``q``, computed at
+    most once per cycle (one pose computation shared by both)."""
 
     def __init__(self, context: ControlContext) -> None:
         from jointctl.sim.dynamics import RobotDynamics  # the model's dynamics, not the simulated world
@@ -27,29 +28,32 @@ class ModelFeedforward:
         self.dynamics = RobotDynamics(context.robot, context.gravity_m_s2)
         hw_names = context.hardware.joint_names
         self._to_model = np.array([self.dynamics.joint_names.index(n) for n in hw_names], dtype=int)
-        self._gravity_time = self._inertia_time = math.nan
+        self._q = np.zeros(len(self.dynamics.joint_names))
+        self._qdd = np.zeros(len(self.dynamics.joint_names))
+        self._pose_time = self._gravity_time = self._inertia_time = math.nan
         self._gravity = [0.0] * len(hw_names)
         self._inertia = [0.0] * len(hw_names)
 
-    def _q(self) -> np.ndarray:
-        q = np.zeros(len(self.dynamics.joint_names))
-        q[self._to_model] = self.context.hardware.position
-        return q
+    def _pose(self, time_s: float) -> None:
+        if time_s != self._pose_time:
+            self._q[self._to_model] = self.context.hardware.position
+            self.dynamics.set_pose(self._q)
+            self._pose_time = time_s
 
     def gravity(self, time_s: float) -> list[float]:
         """Per hardware joint, the effort [N or N·m] that holds the measured pose against gravity."""
         if time_s != self._gravity_time:
-            self._gravity = self.dynamics.gravity(self._q())[self._to_model].tolist()
+            self._pose(time_s)
+            self._gravity = self.dynamics.gravity_at_pose()[self._to_model].tolist()
             self._gravity_time = time_s
         return self._gravity
 
     def inertia(self, time_s: float) -> list[float]:
         """Per hardware joint, ``M(q)·q̈_ref`` [N or N·m] for the acceleration references."""
         if time_s != self._inertia_time:
-            qdd = np.zeros(len(self.dynamics.joint_names))
-            qdd[self._to_model] = self.context.acceleration_references
-            mass = self.dynamics.mass_matrix(self._q())
-            self._inertia = (mass @ qdd)[self._to_model].tolist()
+            self._pose(time_s)
+            self._qdd[self._to_model] = self.context.acceleration_references
+            self._inertia = self.dynamics.inertia_at_pose(self._qdd)[self._to_model].tolist()
             self._inertia_time = time_s
         return self._inertia
 

@@ -289,6 +289,59 @@ def _run_variant(session: Session, out: Path, controller_overrides: dict[str, An
     return load_trace(variant.trace_path)
 
 
+def _rms_tracking_error(trace: Trace, joint: str, start_s: float, end_s: float) -> float:
+    """RMS of (reference - position) over [start_s, end_s]: how well the joint follows its reference."""
+    t = trace.time_s
+    window = (t >= start_s) & (t <= end_s)
+    error = trace.joint(joint, "command")[window] - trace.joint(joint, "position")[window]
+    return float(np.sqrt(np.mean(error**2)))
+
+
+def analyse_trajectory_tracking(session: Session, trace: Trace, out: Path,
+                                params: dict[str, Any]) -> dict[str, Any]:
+    """A trajectory goal executed in jointctl's default and in the chapter's mode (figs. 11.8, 11.9)."""
+    joint = _joint(session, params)
+    if not session.goals:
+        raise ConfigError("the analysis needs an accepted trajectory goal", source=session.scenario.source,
+                          field="goals")
+    goal = session.goals[0]
+    start = goal.validated.start_time_s
+    end = start + float(goal.validated.times_s[-1])
+    chapter_overrides = params.get("chapter_mode") or {}
+    chapter = _run_variant(session, out / "chapter_mode", dict(chapter_overrides))
+    t = trace.time_s
+    column = goal.trajectory.joint_names.index(joint)
+    points_t = start + np.array([p.time_from_start_s for p in goal.trajectory.points])
+    points_q = np.array([p.positions[column] for p in goal.trajectory.points])
+    name = session.scenario.name
+    figures.plot_series(out / "coarse_points.png", points_t, {"trajectory points": points_q},
+                        title=f"{name}: the client's coarse points (fig. 11.8)", ylabel="position [m]",
+                        markers=True)
+    figures.plot_series(out / "interpolated_command.png", t,
+                        {"chapter mode: linear, 100 Hz": chapter.joint(joint, "command"),
+                         "jointctl: cubic, 1 kHz": trace.joint(joint, "command")},
+                        title=f"{name}: interpolated command (fig. 11.9)", ylabel="position [m]")
+    figures.plot_series(out / "position.png", t,
+                        {"reference": trace.joint(joint, "command"),
+                         "position, chapter mode": chapter.joint(joint, "position"),
+                         "position, jointctl feed-forward": trace.joint(joint, "position")},
+                        title=f"{name}: {joint} position", ylabel="position [m]")
+    figures.plot_series(out / "tracking_error.png", t,
+                        {"chapter mode": chapter.joint(joint, "command") - chapter.joint(joint, "position"),
+                         "jointctl feed-forward": trace.joint(joint, "command") - trace.joint(joint, "position")},
+                        title=f"{name}: tracking error", ylabel="reference - position [m]")
+    chapter_rms = _rms_tracking_error(chapter, joint, start, end)
+    ff_rms = _rms_tracking_error(trace, joint, start, end)
+    return {
+        "result": goal.status.value,
+        "points": len(goal.trajectory.points),
+        "duration_s": end - start,
+        "rms_tracking_error_m_chapter_mode": chapter_rms,
+        "rms_tracking_error_m_feedforward": ff_rms,
+        "error_reduction": chapter_rms / ff_rms,
+    }
+
+
 Analysis = Callable[[Session, Trace, Path, dict[str, Any]], dict[str, Any]]
 
 ANALYSES: dict[str, Analysis] = {
@@ -297,6 +350,7 @@ ANALYSES: dict[str, Analysis] = {
     "velocity_sine_response": analyse_velocity_sine,
     "drop_weight": analyse_drop_weight,
     "nac_drop": analyse_nac_drop,
+    "trajectory_tracking": analyse_trajectory_tracking,
 }
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from jointctl.control.manager import ControllerManager
+from jointctl.control.manager import ControllerManager, read_yaml
 from jointctl.errors import ConfigError
 from jointctl.hardware.mujoco_hardware import MujocoHardware
 from jointctl.model.loader import load_robot_model
@@ -22,6 +22,10 @@ from jointctl.sim.mjcf_builder import WorldSettings
 from jointctl.sim.world import MujocoWorld
 from jointctl.tools.command_sources import CommandSource, command_source_from_config
 from jointctl.tools.recorder import TraceRecorder
+from jointctl.tools.trajectory_clients import coarse_sine
+from jointctl.trajectory.errors import InvalidTrajectory
+from jointctl.trajectory.executor import TrajectoryExecutor  # noqa: F401  (registers the controller type)
+from jointctl.trajectory.messages import JointTrajectory
 
 TRACE_FILE = "trace.csv"
 
@@ -71,6 +75,12 @@ class Session:
             self.loop.add_input(_feed(source, self.manager.controller(name)))
         if scenario.objects:
             self.loop.add_input(_spawner(self.world, scenario.objects))
+        #: Handles of the scenario's trajectory goals, in the order they were sent.
+        self.goals: list = []
+        if scenario.goals:
+            self.loop.add_input(_goal_sender(self, [
+                (g["at_s"], self.manager.controller(g["controller"]), goal_trajectory(g, scenario.source, k))
+                for k, g in enumerate(scenario.goals)]))
         self.recorder: TraceRecorder | None = None
         self.out_dir = Path(out_dir) if out_dir is not None else None
         if self.out_dir is not None:
@@ -110,6 +120,35 @@ def _spawner(world: MujocoWorld, objects):
             world.spawn(pending.pop(0))
 
     return spawn
+
+
+def goal_trajectory(goal: dict, source: str, index: int) -> JointTrajectory:
+    """The JointTrajectory a scenario goal describes."""
+    field = f"goals[{index}]"
+    try:
+        if "coarse_sine" in goal:
+            return coarse_sine(**goal["coarse_sine"])
+        data = goal["trajectory"] if "trajectory" in goal else read_yaml(goal["file"])
+        return JointTrajectory.from_dict(data)
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise ConfigError(f"cannot build the trajectory: {exc}", source=source, field=field) from None
+
+
+def _goal_sender(session: Session, goals):
+    """A loop input that submits each goal to its executor once loop time reaches ``at_s``;
+    a refused goal is kept as a REJECTED handle, not raised into the loop."""
+    pending = sorted(goals, key=lambda g: g[0])
+
+    def send(time_s: float) -> None:
+        while pending and time_s + 1e-9 >= pending[0][0]:
+            _, executor, trajectory = pending.pop(0)
+            try:
+                session.goals.append(executor.submit(trajectory, now_s=time_s))
+            except InvalidTrajectory as exc:
+                session.rejected_goals.append(exc)
+
+    session.rejected_goals = []
+    return send
 
 
 def _feed(source: CommandSource, controller):

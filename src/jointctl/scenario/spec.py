@@ -44,8 +44,9 @@ from jointctl.sim.objects import ObjectSpec, object_from_config
 _KEYS = {
     "name", "description", "robot", "controller_file", "controllers", "start_controllers",
     "gravity", "timestep_s", "loop_rate_hz", "floor", "initial_positions", "duration_s",
-    "commands", "record", "analysis", "objects",
+    "commands", "record", "analysis", "objects", "goals",
 }
+_GOAL_SOURCES = ("trajectory", "file", "coarse_sine")
 _DESCRIPTION_SUFFIXES = (".xacro", ".urdf")
 
 
@@ -77,6 +78,7 @@ class Scenario:
     duration_s: float
     commands: dict[str, dict[str, Any]]
     objects: tuple[ObjectSpec, ...]
+    goals: tuple[dict[str, Any], ...]
     record_every: int
     analysis: dict[str, Any] | None
     description: str = ""
@@ -222,11 +224,47 @@ class _Validator:
             duration_s=self.number("duration_s", positive=True),
             commands=commands,
             objects=self.objects(floor),
+            goals=self.goals(start),
             record_every=every,
             analysis=analysis,
             description=str(raw.get("description", "")).strip(),
             raw=raw,
         )
+
+    def goals(self, started: list[str]) -> tuple[dict[str, Any], ...]:
+        """Trajectory goals sent to a started executor at ``at_s``: one of ``trajectory`` (the
+        message as data), ``file`` (a YAML/JSON file of it) or ``coarse_sine`` (the chapter's client)."""
+        value = self.raw.get("goals") or []
+        if not isinstance(value, list):
+            raise self.error("must be a list of goals", "goals", value)
+        goals = []
+        for k, goal in enumerate(value):
+            field = f"goals[{k}]"
+            if not isinstance(goal, dict):
+                raise self.error("must be a mapping", field, goal)
+            unknown = set(goal) - {"controller", "at_s", *_GOAL_SOURCES}
+            if unknown:
+                raise self.error("unknown field", f"{field}.{sorted(unknown)[0]}", goal[sorted(unknown)[0]])
+            if goal.get("controller") not in started:
+                raise self.error("must name a started trajectory controller", f"{field}.controller",
+                                 goal.get("controller"))
+            at = self.check_number(goal.get("at_s", 0.0), f"{field}.at_s")
+            if at < 0:
+                raise self.error("must not be negative", f"{field}.at_s", at)
+            sources = [s for s in _GOAL_SOURCES if s in goal]
+            if len(sources) != 1:
+                raise self.error(f"needs exactly one of {', '.join(_GOAL_SOURCES)}", field, sorted(goal))
+            source = sources[0]
+            if not isinstance(goal[source], (dict, str)):
+                raise self.error("must be a mapping" + (" or a path" if source == "file" else ""),
+                                 f"{field}.{source}", goal[source])
+            if source == "file":
+                path = (self.base / goal["file"]).resolve()
+                if not path.is_file():
+                    raise self.error("file not found", f"{field}.file", goal["file"])
+                goal = {**goal, "file": str(path)}
+            goals.append({**goal, "at_s": at})
+        return tuple(goals)
 
     def objects(self, floor: bool) -> tuple[ObjectSpec, ...]:
         value = self.raw.get("objects") or []

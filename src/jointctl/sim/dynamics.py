@@ -30,6 +30,28 @@ class RobotDynamics:
         self.dof_adr = np.array([m.jnt_dofadr[j] for j in jids], dtype=int)
         self.damping = m.dof_damping[self.dof_adr].copy()
         self._tau = np.zeros(m.nv)
+        self._qdd = np.zeros(m.nv)
+
+    def set_pose(self, q) -> None:
+        """Compute the position-dependent quantities at ``q`` (zero velocity); the
+        ``*_at_pose`` methods then answer for that pose without recomputing it."""
+        d = self.data
+        d.qpos[self.qpos_adr] = q
+        d.qvel[:] = 0.0
+        d.qacc[:] = 0.0
+        mujoco.mj_fwdPosition(self.model, d)
+
+    def gravity_at_pose(self) -> np.ndarray:
+        """g(q) at the pose of the last :meth:`set_pose`."""
+        self.data.qacc[:] = 0.0
+        mujoco.mj_rne(self.model, self.data, 0, self._tau)
+        return self._tau[self.dof_adr]
+
+    def inertia_at_pose(self, qdd) -> np.ndarray:
+        """M(q)·qdd at the pose of the last :meth:`set_pose` (MuJoCo's sparse product)."""
+        self._qdd[self.dof_adr] = qdd
+        mujoco.mj_mulM(self.model, self.data, self._tau, self._qdd)
+        return self._tau[self.dof_adr]
 
     def inverse_dynamics(self, q, qdd=None) -> np.ndarray:
         """Joint efforts [N or N·m] holding the robot at ``q`` with acceleration ``qdd``

@@ -124,6 +124,7 @@ def plot_series(
     title: str,
     ylabel: str,
     zoom: tuple[float, float] | None = None,
+    markers: bool = False,
 ) -> Path:
     """Save a PNG of several series (effort, velocity...) against time on one axis.
 
@@ -134,13 +135,15 @@ def plot_series(
         title: figure title.
         ylabel: y-axis label with units, e.g. ``"effort [N]"``.
         zoom: optional (t0, t1) [s] limiting the x axis.
+        markers: draw each sample as a dot joined by thin lines (for sparse points).
 
     Returns:
         ``path`` as a :class:`pathlib.Path`.
     """
     t, curves = _curves(time_s, series)
     fig, ax = _new_axes(title, ylabel)
+    style = {"marker": "o", "markersize": 4, "linewidth": 0.8} if markers else {}
     for name, y in curves.items():
-        ax.plot(t, y, label=name)
+        ax.plot(t, y, label=name, **style)
     _apply_zoom(ax, t, curves, zoom)
     return _save(fig, ax, path)

@@ -28,7 +28,7 @@ class JointTrajectoryPoint:
 
     def __post_init__(self) -> None:
         for name in ("positions", "velocities", "accelerations", "effort"):
-            object.__setattr__(self, name, tuple(getattr(self, name)))
+            object.__setattr__(self, name, _as_tuple(getattr(self, name)))
 
 
 @dataclass(frozen=True)
@@ -41,8 +41,8 @@ class JointTrajectory:
     frame_id: str = ""
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "joint_names", tuple(self.joint_names))
-        object.__setattr__(self, "points", tuple(self.points))
+        object.__setattr__(self, "joint_names", _as_tuple(self.joint_names))
+        object.__setattr__(self, "points", _as_tuple(self.points))
 
     @classmethod
     def from_arrays(
@@ -82,7 +82,18 @@ class JointTrajectory:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> JointTrajectory:
-        """Inverse of :meth:`to_dict`; values are checked later by validation."""
+        """Inverse of :meth:`to_dict`; values are checked later by validation. Data that
+        cannot even be read as a trajectory is refused as INVALID_GOAL."""
+        try:
+            return cls._from_dict(data)
+        except (TypeError, AttributeError, ValueError) as exc:
+            from jointctl.trajectory.errors import InvalidTrajectory, TrajectoryErrorCode
+
+            raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL,
+                                    f"not a trajectory message: {exc}") from None
+
+    @classmethod
+    def _from_dict(cls, data: Mapping[str, Any]) -> JointTrajectory:
         header = data.get("header") or {}
         return cls(
             joint_names=tuple(data.get("joint_names") or ()),
@@ -99,6 +110,14 @@ class JointTrajectory:
             stamp_s=header.get("stamp", 0.0),
             frame_id=header.get("frame_id", ""),
         )
+
+
+def _as_tuple(value: Any) -> Any:
+    """Lists and other sequences become tuples; a string or a non-sequence stays as it is,
+    for validation to refuse (a string must not turn into its letters)."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        return value
+    return tuple(value.tolist() if isinstance(value, np.ndarray) else value)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,312 @@
+"""Piecewise-polynomial joint trajectories, vectorised over joints and sample times.
+
+Times are in seconds; positions in rad (or m), velocities per second,
+accelerations per second squared. An :class:`Interpolant` stores one
+polynomial per segment and joint as coefficients in powers of ``t - t_k``
+(array ``(segments, joints, 6)``), so sampling any number of times is a
+``searchsorted`` plus a Horner evaluation over the 6 coefficients, with no
+Python loop over times or joints. Evaluating a scipy spline every control
+step is slow; precompute a block of samples with :func:`sample_block` instead.
+
+Validation of user trajectories (with proper error codes) happens upstream;
+the ``ValueError`` raised here is a programming guard.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.interpolate import CubicSpline
+
+Kind = Literal["linear", "cubic", "quintic"]
+FloatArray = NDArray[np.float64]
+
+_N_COEFFS = 6
+_KINDS = ("auto", "linear", "cubic", "quintic", "spline")
+
+
+def _as_float_array(value: Any, name: str) -> FloatArray:
+    """``np.asarray(value, float)`` that only ever raises ``ValueError``."""
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ValueError(f"{name} is not a numeric array: {exc}") from None
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} contains NaN or infinite values")
+    return array
+
+
+class Interpolant:
+    """A piecewise-polynomial joint trajectory through knots.
+
+    Attributes:
+        kind: ``'linear'``, ``'cubic'`` or ``'quintic'``.
+        times_s: knot times (K,), strictly increasing, s.
+        positions: knot positions (K, J).
+        velocities: knot velocities (K, J) per s. Always equal to what
+            :meth:`sample` returns at the knot time: the outgoing segment's
+            start value, and the last segment's end value at the last knot.
+            For ``'linear'`` that is the segment slope (outgoing; the last
+            knot reports the last segment's slope).
+        accelerations: knot accelerations (K, J) per s², same convention
+            (zeros for ``'linear'``; for ``'cubic'`` the one-sided value, which
+            is continuous only for a spline fill).
+        duration_s: ``times_s[-1]`` (s). A trajectory starting at t = 0 lasts this long.
+        n_joints: J.
+        coefficients: (K-1, J, 6) polynomial coefficients in powers of ``t - times_s[k]``.
+
+    A single knot (K = 1) is a hold: zero velocity and acceleration everywhere.
+    Instances are immutable (arrays are read-only); build them with
+    :func:`build_interpolant`.
+    """
+
+    __slots__ = ("kind", "times_s", "positions", "velocities", "accelerations",
+                 "coefficients", "_d1", "_d2")
+
+    def __init__(self, kind: Kind, times_s: FloatArray, positions: FloatArray,
+                 velocities: FloatArray, accelerations: FloatArray,
+                 coefficients: FloatArray) -> None:
+        self.kind: Kind = kind
+        self.times_s = times_s
+        self.positions = positions
+        self.velocities = velocities
+        self.accelerations = accelerations
+        self.coefficients = coefficients
+        powers = np.arange(1, _N_COEFFS, dtype=float)
+        self._d1 = coefficients[..., 1:] * powers                 # (S, J, 5) velocity coefficients
+        self._d2 = self._d1[..., 1:] * powers[:-1]                # (S, J, 4) acceleration coefficients
+        for array in (times_s, positions, velocities, accelerations, coefficients, self._d1, self._d2):
+            array.flags.writeable = False
+
+    @property
+    def duration_s(self) -> float:
+        """Time of the last knot, s."""
+        return float(self.times_s[-1])
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints J."""
+        return int(self.positions.shape[1])
+
+    def __repr__(self) -> str:
+        return (f"Interpolant(kind={self.kind!r}, knots={len(self.times_s)}, "
+                f"joints={self.n_joints}, t=[{self.times_s[0]:g}, {self.times_s[-1]:g}] s)")
+
+    def sample(self, t: float | Any) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Positions, velocities and accelerations at time(s) ``t`` (s).
+
+        A scalar ``t`` gives three arrays (J,); an array (T,) gives (T, J).
+        Before ``times_s[0]`` the result is the first knot's position with
+        zero velocity and acceleration; after ``times_s[-1]`` the last knot's
+        position with zero velocity and acceleration. At a knot time the
+        position is the knot's exactly, and velocity and acceleration are the
+        knot's ``velocities``/``accelerations`` rows. A scalar call costs about
+        15 µs; in a control loop precompute blocks with :func:`sample_block`
+        (about 0.3 µs per sample for 7 joints).
+        """
+        try:
+            t_arr = np.asarray(t, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"t is not numeric: {exc}") from None
+        if t_arr.ndim == 0:
+            return self._sample_scalar(float(t_arr))
+        if t_arr.ndim != 1:
+            raise ValueError(f"t must be a scalar or a 1-D array, got shape {t_arr.shape}")
+        if np.isnan(t_arr).any():
+            raise ValueError("t contains NaN")
+        n_joints = self.positions.shape[1]
+        pos = np.empty((t_arr.size, n_joints))
+        vel = np.zeros((t_arr.size, n_joints))
+        acc = np.zeros((t_arr.size, n_joints))
+
+        t_first, t_last = self.times_s[0], self.times_s[-1]
+        before = t_arr < t_first
+        after = t_arr >= t_last
+        inside = ~(before | after)
+        if inside.any():
+            t_in = t_arr[inside]
+            seg = np.searchsorted(self.times_s, t_in, side="right") - 1
+            np.clip(seg, 0, len(self.times_s) - 2, out=seg)
+            tau = (t_in - self.times_s[seg])[:, None]             # (n, 1)
+            pos[inside] = _horner(self.coefficients[seg], tau)
+            vel[inside] = _horner(self._d1[seg], tau)
+            acc[inside] = _horner(self._d2[seg], tau)
+        pos[before] = self.positions[0]
+        pos[after] = self.positions[-1]
+        at_end = t_arr == t_last
+        vel[at_end] = self.velocities[-1]
+        acc[at_end] = self.accelerations[-1]
+        return pos, vel, acc
+
+    def _sample_scalar(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """:meth:`sample` for one time, without the masking overhead (same results)."""
+        if t != t:
+            raise ValueError("t contains NaN")
+        times = self.times_s
+        zeros = np.zeros(self.positions.shape[1])
+        if t < times[0]:
+            return self.positions[0].copy(), zeros, zeros.copy()
+        if t >= times[-1]:
+            if t == times[-1]:
+                return self.positions[-1].copy(), self.velocities[-1].copy(), self.accelerations[-1].copy()
+            return self.positions[-1].copy(), zeros, zeros.copy()
+        seg = min(int(np.searchsorted(times, t, side="right")) - 1, len(times) - 2)
+        tau = t - times[seg]
+        return (_horner(self.coefficients[seg], tau), _horner(self._d1[seg], tau),
+                _horner(self._d2[seg], tau))
+
+
+def _horner(coefficients: FloatArray, tau: FloatArray | float) -> FloatArray:
+    """Evaluate ``sum_i c[..., i] * tau**i`` for c (n, J, m) and tau (n, 1), or c (J, m) and a float."""
+    result = coefficients[..., -1].copy()
+    for i in range(coefficients.shape[-1] - 2, -1, -1):
+        result *= tau
+        result += coefficients[..., i]
+    return result
+
+
+def _segment_coefficients(kind: Kind, h: FloatArray, p0: FloatArray, p1: FloatArray,
+                          v0: FloatArray, v1: FloatArray, a0: FloatArray, a1: FloatArray) -> FloatArray:
+    """Coefficients (S, J, 6) for segments of length h (S, 1) between knot values (S, J)."""
+    c = np.zeros(p0.shape + (_N_COEFFS,))
+    dp = p1 - p0
+    c[..., 0] = p0
+    if kind == "linear":
+        c[..., 1] = dp / h
+    elif kind == "cubic":
+        c[..., 1] = v0
+        c[..., 2] = (3.0 * dp / h - 2.0 * v0 - v1) / h
+        c[..., 3] = (-2.0 * dp / h + v0 + v1) / h**2
+    else:
+        c[..., 1] = v0
+        c[..., 2] = 0.5 * a0
+        c[..., 3] = (20.0 * dp - (8.0 * v1 + 12.0 * v0) * h - (3.0 * a0 - a1) * h**2) / (2.0 * h**3)
+        c[..., 4] = (-30.0 * dp + (14.0 * v1 + 16.0 * v0) * h + (3.0 * a0 - 2.0 * a1) * h**2) / (2.0 * h**4)
+        c[..., 5] = (12.0 * dp - 6.0 * (v1 + v0) * h + (a1 - a0) * h**2) / (2.0 * h**5)
+    return c
+
+
+def _boundary_velocity(value: Any, n_joints: int, name: str) -> FloatArray:
+    if value is None:
+        return np.zeros(n_joints)
+    array = _as_float_array(value, name)
+    if array.ndim == 0:
+        return np.full(n_joints, float(array))
+    if array.shape != (n_joints,):
+        raise ValueError(f"{name} must be a scalar or have shape ({n_joints},), got {array.shape}")
+    return array
+
+
+def build_interpolant(times_s: Any, positions: Any, velocities: Any = None, accelerations: Any = None,
+                      *, kind: str = "auto", start_velocity: Any = None,
+                      end_velocity: Any = None) -> Interpolant:
+    """Build an :class:`Interpolant` through knots.
+
+    Args:
+        times_s: knot times (K,), s, strictly increasing, K >= 1.
+        positions: (K, J) knot positions.
+        velocities: optional (K, J) knot velocities, per s.
+        accelerations: optional (K, J) knot accelerations, per s² (needs velocities).
+        kind: ``"auto"`` picks linear (positions only), cubic Hermite (with
+            velocities) or quintic (with velocities and accelerations).
+            ``"linear"``, ``"cubic"``, ``"quintic"`` force the order (ignoring
+            fields the order does not use; cubic/quintic raise if theirs are
+            missing). ``"spline"`` ignores given velocities/accelerations and
+            fills the velocities from a C2 cubic spline through the positions
+            (``scipy.interpolate.CubicSpline``, clamped to ``start_velocity`` /
+            ``end_velocity``), giving a cubic Hermite equal to that spline.
+        start_velocity, end_velocity: scalar or (J,), per s, default 0; only
+            used by ``kind="spline"``.
+
+    A single knot is a hold (velocities and accelerations zero).
+
+    Raises:
+        ValueError: unknown kind, missing fields, shape mismatch, non-finite
+            values, or times that are not strictly increasing.
+    """
+    if kind not in _KINDS:
+        raise ValueError(f"kind must be one of {_KINDS}, got {kind!r}")
+    t = _as_float_array(times_s, "times_s")
+    p = _as_float_array(positions, "positions")
+    if t.ndim != 1 or t.size < 1:
+        raise ValueError(f"times_s must be a non-empty 1-D array, got shape {t.shape}")
+    if p.ndim != 2 or p.shape[0] != t.size or p.shape[1] < 1:
+        raise ValueError(f"positions must have shape ({t.size}, joints >= 1), got {p.shape}")
+    if np.any(np.diff(t) <= 0.0):
+        raise ValueError("times_s must be strictly increasing")
+    n_knots, n_joints = p.shape
+    v = None if velocities is None else _as_float_array(velocities, "velocities")
+    a = None if accelerations is None else _as_float_array(accelerations, "accelerations")
+    for name, array in (("velocities", v), ("accelerations", a)):
+        if array is not None and array.shape != p.shape:
+            raise ValueError(f"{name} must have shape {p.shape}, got {array.shape}")
+
+    resolved: Kind
+    if kind == "auto":
+        if a is not None and v is None:
+            raise ValueError("accelerations given without velocities")
+        resolved = "linear" if v is None else ("cubic" if a is None else "quintic")
+    elif kind == "spline":
+        resolved = "cubic"
+        start = _boundary_velocity(start_velocity, n_joints, "start_velocity")
+        end = _boundary_velocity(end_velocity, n_joints, "end_velocity")
+        a = None
+        if n_knots >= 2:
+            spline = CubicSpline(t, p, axis=0, bc_type=((1, start), (1, end)))
+            v = np.asarray(spline(t, 1), dtype=float)
+        else:
+            v = np.zeros_like(p)
+    else:
+        resolved = kind  # type: ignore[assignment]
+        if resolved in ("cubic", "quintic") and v is None:
+            raise ValueError(f"kind {kind!r} needs velocities")
+        if resolved == "quintic" and a is None:
+            raise ValueError("kind 'quintic' needs accelerations")
+
+    if n_knots == 1:
+        zeros = np.zeros_like(p)
+        return Interpolant(resolved, t, p, zeros, zeros.copy(), np.zeros((0, n_joints, _N_COEFFS)))
+
+    h = np.diff(t)[:, None]
+    v_k = np.zeros_like(p) if v is None else v
+    a_k = np.zeros_like(p) if a is None else a
+    coeffs = _segment_coefficients(resolved, h, p[:-1], p[1:], v_k[:-1], v_k[1:], a_k[:-1], a_k[1:])
+    if not np.all(np.isfinite(coeffs)):
+        raise ValueError("time steps too small for the given values (non-finite coefficients)")
+
+    if resolved == "quintic":
+        assert v is not None and a is not None
+        vel, acc = v.copy(), a.copy()
+    elif resolved == "cubic":
+        assert v is not None
+        vel = v.copy()
+        acc = np.empty_like(p)
+        acc[:-1] = 2.0 * coeffs[:, :, 2]
+        acc[-1] = 2.0 * coeffs[-1, :, 2] + 6.0 * coeffs[-1, :, 3] * h[-1]
+    else:
+        vel = np.empty_like(p)
+        vel[:-1] = coeffs[:, :, 1]
+        vel[-1] = coeffs[-1, :, 1]
+        acc = np.zeros_like(p)
+    return Interpolant(resolved, t, p, vel, acc, coeffs)
+
+
+def sample_block(interpolant: Interpolant, t0: float, period_s: float,
+                 count: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Sample ``count`` control cycles at ``t0 + k * period_s`` (s), k = 0..count-1.
+
+    Returns positions, velocities and accelerations, each (count, J).
+    """
+    try:
+        start, period, n = float(t0), float(period_s), int(count)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ValueError(f"bad sample_block arguments: {exc}") from None
+    if not np.isfinite(start):
+        raise ValueError(f"t0 must be finite, got {t0!r}")
+    if not (np.isfinite(period) and period > 0.0):
+        raise ValueError(f"period_s must be positive and finite, got {period_s!r}")
+    if n != count or n < 0:
+        raise ValueError(f"count must be a non-negative integer, got {count!r}")
+    return interpolant.sample(start + period * np.arange(n, dtype=float))
