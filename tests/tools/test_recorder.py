@@ -51,7 +51,7 @@ def test_rows_spool_to_disk_in_chunks_and_the_spool_is_removed(write_scenario, t
     session.loop.add_observer(recorder)
     session.run()
     assert recorder.rows_written == 96  # six full chunks of 16 went to disk during the run
-    assert len(recorder._values) == 4 * len(recorder.columns)
+    assert len(recorder._rows) == 4
     recorder.close()
     assert not any(p.name.startswith(".") for p in tmp_path.iterdir())
     assert len(load_trace(tmp_path / "trace.csv").time_s) == 100

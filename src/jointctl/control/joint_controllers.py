@@ -119,10 +119,14 @@ class JointPositionController(_EffortJointController):
 
     def set_command(self, position: float, velocity: float = 0.0, acceleration: float = 0.0) -> None:
         """Command a position [m or rad], with optional velocity [/s] and acceleration [/s²] references."""
-        command = (self._finite(position, "command.position"), self._finite(velocity, "command.velocity"),
-                   self._finite(acceleration, "command.acceleration"))
-        self._command = command
-        self._accelerations[self.index] = command[2]
+        # One check for the usual case, three finite floats (x - x is 0.0 only for a finite x).
+        if not (type(position) is float and type(velocity) is float and type(acceleration) is float
+                and position - position + velocity - velocity + acceleration - acceleration == 0.0):
+            position = self._finite(position, "command.position")
+            velocity = self._finite(velocity, "command.velocity")
+            acceleration = self._finite(acceleration, "command.acceleration")
+        self._command = (position, velocity, acceleration)
+        self._accelerations[self.index] = acceleration
 
     @property
     def command(self) -> tuple[float, float, float]:
