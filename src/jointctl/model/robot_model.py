@@ -97,6 +97,9 @@ class Joint:
     limits: JointLimits | None = None
     damping: float = 0.0
     friction: float = 0.0
+    #: Reflected actuator (rotor) inertia about the axis [kg·m² or kg], from the jointctl
+    #: extension ``<dynamics armature="..."/>`` (other URDF tools ignore it).
+    armature: float = 0.0
 
     @property
     def is_locked(self) -> bool:

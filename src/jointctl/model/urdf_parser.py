@@ -227,16 +227,19 @@ class _Parser:
                     raise self.error("lower is above upper", f"{lw}.lower", lower)
             limits = JointLimits(lower, upper, effort, velocity)
         dyn = el.find("dynamics")
-        damping = friction = 0.0
+        damping = friction = armature = 0.0
         if dyn is not None:
             damping = self.number(dyn, "damping", f"{where}.dynamics", 0.0)
             friction = self.number(dyn, "friction", f"{where}.dynamics", 0.0)
+            armature = self.number(dyn, "armature", f"{where}.dynamics", 0.0)
+            if armature < 0:
+                raise self.error("armature must not be negative", f"{where}.dynamics.armature", armature)
             if damping < 0:
                 raise self.error("damping must not be negative", f"{where}.dynamics.damping", damping)
             if friction < 0:
                 raise self.error("friction must not be negative", f"{where}.dynamics.friction", friction)
         return Joint(name, jtype, parent.get("link"), child.get("link"),
-                     self.pose(el.find("origin"), where), axis, limits, damping, friction)
+                     self.pose(el.find("origin"), where), axis, limits, damping, friction, armature)
 
     def check_tree(self, links: tuple[Link, ...], joints: tuple[Joint, ...]) -> None:
         names = {lk.name for lk in links}

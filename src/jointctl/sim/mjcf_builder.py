@@ -62,6 +62,7 @@ def build_spec(robot: RobotModel, settings: WorldSettings) -> mujoco.MjSpec:
     spec.modelname = robot.name
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     spec.compiler.autolimits = True
+    spec.compiler.degree = False  # URDF angles are radians; MjSpec's default is degrees
     spec.option.timestep = settings.timestep_s
     spec.option.gravity = list(settings.gravity_m_s2)
     if settings.floor:
@@ -134,7 +135,7 @@ class _Builder:
                              f"joint[{joint.name}].type", joint.type)
         jtype = mujoco.mjtJoint.mjJNT_SLIDE if joint.is_prismatic else mujoco.mjtJoint.mjJNT_HINGE
         kwargs = dict(name=joint.name, type=jtype, axis=list(joint.axis),
-                      damping=joint.damping, frictionloss=joint.friction)
+                      damping=joint.damping, frictionloss=joint.friction, armature=joint.armature)
         lim = joint.limits
         if lim is not None and lim.lower is not None:
             kwargs.update(limited=mujoco.mjtLimited.mjLIMITED_TRUE, range=[lim.lower, lim.upper])

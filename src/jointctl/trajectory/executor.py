@@ -160,6 +160,7 @@ class TrajectoryExecutor(Controller):
         self.path_velocity_fraction = params.number("path_velocity_fraction", 0.5, positive=True)
         self.start_tolerance = params.number("start_tolerance", 1e-3, minimum=0)
         self.check_velocity_limits = params.boolean("check_velocity_limits", True)
+        self.min_points = int(params.number("min_points", 1, positive=True))
         params.reject_unknown({"type"})
         self.active_goal: GoalHandle | None = None
         self.goals_served = 0
@@ -234,6 +235,10 @@ class TrajectoryExecutor(Controller):
         handle = GoalHandle(trajectory, on_feedback, on_done)
         now = self._last_time_s if now_s is None else now_s
         try:
+            points = trajectory.points if isinstance(trajectory, JointTrajectory) else ()
+            if isinstance(points, tuple) and 0 < len(points) < self.min_points:
+                raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL,
+                                        f"needs at least {self.min_points} points", value=len(points))
             handle.validated = validate_trajectory(
                 trajectory, self.specs, now_s=now, current_positions=list(self.desired),
                 start_tolerance=self.start_tolerance, check_velocity=self.check_velocity_limits)
@@ -255,7 +260,8 @@ class TrajectoryExecutor(Controller):
         joints' velocity limits (scaled by ``path_velocity_fraction``), ``max_acceleration`` and
         ``max_jerk``; ``"chapter"``: the chapter's rule (slowest joint at
         ``path_velocity_fraction`` of its velocity limit, at least 20 ms a segment), positions only.
-        The current pose is prepended; the result starts ``start_s`` after submission.
+        The current pose is the first point, ``start_s`` after submission (the chapter's clients
+        prepend it too).
         """
         names = tuple(joint_names or self.joint_names)
         columns = [self.joint_names.index(n) for n in names]
@@ -265,14 +271,13 @@ class TrajectoryExecutor(Controller):
         vmax = np.array([self.specs[c].max_velocity for c in columns]) * self.path_velocity_fraction
         if timing == "chapter":
             times = chapter_timing(full, vmax, velocity_fraction=1.0)
-            return JointTrajectory.from_arrays(names, times[1:] + start_s, full[1:])
+            return JointTrajectory.from_arrays(names, times + start_s, full)
         if timing != "ruckig":
             raise ValueError(f"timing must be 'ruckig' or 'chapter', got {timing!r}")
         amax = np.array([self.max_acceleration[c] for c in columns])
         jmax = np.array([self.max_jerk[c] for c in columns])
         times, positions, velocities, accelerations = ruckig_timing(full, vmax, amax, jmax)
-        return JointTrajectory.from_arrays(names, times[1:] + start_s, positions[1:], velocities[1:],
-                                           accelerations[1:])
+        return JointTrajectory.from_arrays(names, times + start_s, positions, velocities, accelerations)
 
     def stream_reference(self, positions: Sequence[float], velocities: Sequence[float] | None = None) -> None:
         """Set the references directly (a streamed command); held if the stream stops."""
