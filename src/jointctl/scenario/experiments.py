@@ -20,6 +20,7 @@ import numpy as np
 
 from jointctl.errors import ConfigError
 from jointctl.scenario.session import Session
+from jointctl.scenario.spec import flatten
 from jointctl.tools import figures
 from jointctl.tools.recorder import Trace, load_trace
 from jointctl.tools.response_analysis import (
@@ -279,11 +280,14 @@ def analyse_nac_drop(session: Session, trace: Trace, out: Path, params: dict[str
     return metrics
 
 
-def _run_variant(session: Session, out: Path, controller_overrides: dict[str, Any]) -> Trace:
-    """Run the session's scenario again with extra controller overrides; return its trace."""
+def _run_variant(session: Session, out: Path, controller_overrides: dict[str, Any],
+                 **scenario_changes: Any) -> Trace:
+    """Run the session's scenario again with extra controller overrides (and other scenario
+    fields replaced); return its trace."""
     scenario = dataclasses.replace(
         session.scenario, analysis=None,
-        controller_overrides={**session.scenario.controller_overrides, **controller_overrides})
+        controller_overrides={**session.scenario.controller_overrides, **flatten(controller_overrides)},
+        **scenario_changes)
     with Session(scenario, out_dir=out) as variant:
         variant.run()
     return load_trace(variant.trace_path)
@@ -342,6 +346,60 @@ def analyse_trajectory_tracking(session: Session, trace: Trace, out: Path,
     }
 
 
+def _rms_joint_error(trace: Trace, joints: tuple[str, ...], start_s: float, end_s: float) -> float:
+    """RMS over joints and time of (reference - position) within [start_s, end_s]."""
+    t = trace.time_s
+    window = (t >= start_s) & (t <= end_s)
+    errors = np.array([trace.joint(j, "command")[window] - trace.joint(j, "position")[window] for j in joints])
+    return float(np.sqrt(np.mean(errors**2)))
+
+
+def analyse_arm_pose(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
+    """The arm moved to a pose in jointctl's default, in the chapter's streamer mode and with
+    velocity feed-forward only; and the droop of the pose without gravity compensation."""
+    if not session.goals:
+        raise ConfigError("the analysis needs an accepted trajectory goal", source=session.scenario.source,
+                          field="goals")
+    goal = session.goals[0]
+    joints = goal.validated.joint_names
+    start = goal.validated.start_time_s + float(goal.validated.times_s[0])  # the first point: the pose it leaves
+    end = goal.validated.start_time_s + float(goal.validated.times_s[-1])
+    variants = {name: _run_variant(session, out / name, params.get(name) or {})
+                for name in ("chapter_mode", "velocity_ff")}
+    final = np.array([trace.joint(j, "position")[-1] for j in joints])
+    target = goal.validated.positions[-1]
+    metrics: dict[str, Any] = {
+        "duration_s": end - start,
+        "result": goal.status.value,
+        "rms_tracking_error_rad_chapter_mode": _rms_joint_error(variants["chapter_mode"], joints, start, end),
+        "rms_tracking_error_rad_velocity_ff": _rms_joint_error(variants["velocity_ff"], joints, start, end),
+        "rms_tracking_error_rad_feedforward": _rms_joint_error(trace, joints, start, end),
+        "final_error_rad": float(np.max(np.abs(final - target))),
+    }
+    metrics["error_reduction"] = (metrics["rms_tracking_error_rad_chapter_mode"]
+                                  / metrics["rms_tracking_error_rad_feedforward"])
+    t = trace.time_s
+    name = session.scenario.name
+    for label, run in (("jointctl", trace), *variants.items()):
+        figures.plot_series(out / f"tracking_error_{label}.png", t,
+                            {j: run.joint(j, "command") - run.joint(j, "position") for j in joints},
+                            title=f"{name}: tracking error, {label.replace('_', ' ')}",
+                            ylabel="reference - position [rad]")
+    droop_params = params.get("uncompensated")
+    if droop_params is not None:
+        pose = dict(zip(joints, target.tolist()))
+        droop = _run_variant(session, out / "uncompensated", droop_params, goals=(),
+                             initial_positions=pose, duration_s=float(params.get("droop_duration_s", 10.0)))
+        sag = np.array([droop.joint(j, "position")[-1] for j in joints]) - target
+        metrics["uncompensated_droop_rad"] = float(np.max(np.abs(sag)))
+        metrics["uncompensated_droop_by_joint_rad"] = sag.tolist()
+        figures.plot_series(out / "uncompensated_droop.png", droop.time_s,
+                            {j: droop.joint(j, "position") for j in joints},
+                            title=f"{name}: holding the pose without gravity compensation",
+                            ylabel="joint angle [rad]")
+    return metrics
+
+
 Analysis = Callable[[Session, Trace, Path, dict[str, Any]], dict[str, Any]]
 
 ANALYSES: dict[str, Analysis] = {
@@ -351,6 +409,7 @@ ANALYSES: dict[str, Analysis] = {
     "drop_weight": analyse_drop_weight,
     "nac_drop": analyse_nac_drop,
     "trajectory_tracking": analyse_trajectory_tracking,
+    "arm_pose": analyse_arm_pose,
 }
 
 
@@ -363,5 +422,10 @@ def check_analysis(session: Session) -> Analysis | None:
     if fn is None:
         raise ConfigError(f"unknown analysis (known: {', '.join(ANALYSES)})",
                           source=session.scenario.source, field="analysis.type", value=spec["type"])
-    _joint(session, spec)
+    if spec["type"] in _JOINT_ANALYSES:
+        _joint(session, spec)
     return fn
+
+
+_JOINT_ANALYSES = frozenset({"step_response", "sine_response", "velocity_sine_response", "drop_weight",
+                             "nac_drop", "trajectory_tracking"})

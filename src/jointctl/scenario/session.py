@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
+
 from jointctl.control.manager import ControllerManager, read_yaml
 from jointctl.errors import ConfigError
 from jointctl.hardware.mujoco_hardware import MujocoHardware
@@ -79,7 +81,7 @@ class Session:
         self.goals: list = []
         if scenario.goals:
             self.loop.add_input(_goal_sender(self, [
-                (g["at_s"], self.manager.controller(g["controller"]), goal_trajectory(g, scenario.source, k))
+                (g["at_s"], self.manager.controller(g["controller"]), _goal_maker(g, scenario.source, k))
                 for k, g in enumerate(scenario.goals)]))
         self.recorder: TraceRecorder | None = None
         self.out_dir = Path(out_dir) if out_dir is not None else None
@@ -134,6 +136,27 @@ def goal_trajectory(goal: dict, source: str, index: int) -> JointTrajectory:
         raise ConfigError(f"cannot build the trajectory: {exc}", source=source, field=field) from None
 
 
+def _goal_maker(goal: dict, source: str, index: int):
+    """A function of the executor giving the goal's trajectory when it is sent: a ``path`` is
+    timed from the executor's desired pose at that moment; anything else is built now."""
+    if "path" not in goal:
+        trajectory = goal_trajectory(goal, source, index)
+        return lambda executor: trajectory
+    spec = goal["path"]
+    field = f"goals[{index}].path"
+    points, timing = spec.get("points"), spec.get("timing", "ruckig")
+    if timing not in ("chapter", "ruckig"):
+        raise ConfigError("must be chapter or ruckig", source=source, field=f"{field}.timing", value=timing)
+    try:
+        array = np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        array = None
+    if array is None or array.ndim != 2 or not np.isfinite(array).all():
+        raise ConfigError("must be a list of joint-angle lists", source=source, field=f"{field}.points",
+                          value=points)
+    return lambda executor: executor.plan_path(array, timing=timing)
+
+
 def _goal_sender(session: Session, goals):
     """A loop input that submits each goal to its executor once loop time reaches ``at_s``;
     a refused goal is kept as a REJECTED handle, not raised into the loop."""
@@ -141,9 +164,9 @@ def _goal_sender(session: Session, goals):
 
     def send(time_s: float) -> None:
         while pending and time_s + 1e-9 >= pending[0][0]:
-            _, executor, trajectory = pending.pop(0)
+            _, executor, make = pending.pop(0)
             try:
-                session.goals.append(executor.submit(trajectory, now_s=time_s))
+                session.goals.append(executor.submit(make(executor), now_s=time_s))
             except InvalidTrajectory as exc:
                 session.rejected_goals.append(exc)
 

@@ -46,7 +46,7 @@ _KEYS = {
     "gravity", "timestep_s", "loop_rate_hz", "floor", "initial_positions", "duration_s",
     "commands", "record", "analysis", "objects", "goals",
 }
-_GOAL_SOURCES = ("trajectory", "file", "coarse_sine")
+_GOAL_SOURCES = ("trajectory", "file", "coarse_sine", "path")
 _DESCRIPTION_SUFFIXES = (".xacro", ".urdf")
 
 
@@ -233,7 +233,8 @@ class _Validator:
 
     def goals(self, started: list[str]) -> tuple[dict[str, Any], ...]:
         """Trajectory goals sent to a started executor at ``at_s``: one of ``trajectory`` (the
-        message as data), ``file`` (a YAML/JSON file of it) or ``coarse_sine`` (the chapter's client)."""
+        message as data), ``file`` (a YAML/JSON file of it), ``coarse_sine`` (the chapter's client)
+        or ``path`` ({points: [[...], ...], timing: chapter|ruckig}, timed when it is sent)."""
         value = self.raw.get("goals") or []
         if not isinstance(value, list):
             raise self.error("must be a list of goals", "goals", value)
