@@ -3,6 +3,8 @@
     jointctl list                                   built-in robots and scenarios
     jointctl run SCENARIO [--out DIR] [--set K=V]   run one scenario: trace.csv, metrics.json, PNGs
     jointctl demo [--out DIR]                       every built-in experiment and report.md
+    jointctl prompt arm7dof [--out DIR]             move the arm one joint at a time (prompter)
+    jointctl play PATHFILE [--timing T] [--out DIR] execute a CSV path file on the arm (playfile)
 
 Every error a user can cause is printed as one line naming the file, field
 and value, with exit status 2.
@@ -42,6 +44,18 @@ def _parser() -> argparse.ArgumentParser:
 
     demo = sub.add_parser("demo", help="run every built-in experiment and write report.md")
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder")
+
+    prompt = sub.add_parser("prompt", help="the chapter's prompter client: move one joint at a time")
+    prompt.add_argument("robot", choices=["arm7dof"], help="the robot (the arm7dof_streamer scenario)")
+    play = sub.add_parser("play", help="the chapter's playfile client: execute a CSV path file on arm7dof")
+    play.add_argument("pathfile", type=Path, help="CSV file: 7 joint angles (rad) a line, no times")
+    play.add_argument("--timing", choices=["chapter", "ruckig"], default="chapter",
+                      help="path timing: the chapter's rule (default) or jerk-limited ruckig")
+    for client in (prompt, play):
+        client.add_argument("--realtime", action="store_true", help="pace the loop to the wall clock")
+        client.add_argument("--speed", type=float, default=1.0,
+                            help="with --realtime: loop time per wall-clock time (default 1.0)")
+        client.add_argument("--out", type=Path, help="record trace.csv into this folder")
     return parser
 
 
@@ -94,7 +108,24 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
-_COMMANDS = {"list": _list, "run": _run, "demo": _demo}
+def _prompt(args: argparse.Namespace) -> int:
+    from jointctl.tools.arm_clients import prompt_command
+
+    if not args.speed > 0:
+        raise JointCtlError("must be positive", field="--speed", value=args.speed)
+    return prompt_command(realtime=args.realtime, speed=args.speed, out_dir=args.out)
+
+
+def _play(args: argparse.Namespace) -> int:
+    from jointctl.tools.arm_clients import play_command
+
+    if not args.speed > 0:
+        raise JointCtlError("must be positive", field="--speed", value=args.speed)
+    return play_command(args.pathfile, timing=args.timing, realtime=args.realtime, speed=args.speed,
+                        out_dir=args.out)
+
+
+_COMMANDS = {"list": _list, "run": _run, "demo": _demo, "prompt": _prompt, "play": _play}
 
 
 if __name__ == "__main__":

@@ -18,8 +18,12 @@ from jointctl.model.robot_model import RobotModel
 
 
 class ModelFeedforward:
-    """Gravity ``g(q)`` and inertia ``M(q)·q̈_ref`` efforts at the measured ``q``, computed at
-    most once per cycle (one pose computation shared by both)."""
+    """Gravity ``g(q)`` and inertia ``M(q)·q̈_ref`` efforts at the measured ``q``, for every joint.
+
+    The manager runs :meth:`update` once per cycle, right before the first controller that uses
+    it (so after upstream controllers have set this cycle's acceleration references); the
+    controllers then read ``gravity`` and ``inertia`` (lists per hardware joint, N or N·m).
+    """
 
     def __init__(self, context: ControlContext) -> None:
         from jointctl.sim.dynamics import RobotDynamics  # the model's dynamics, not the simulated world
@@ -30,32 +34,26 @@ class ModelFeedforward:
         self._to_model = np.array([self.dynamics.joint_names.index(n) for n in hw_names], dtype=int)
         self._q = np.zeros(len(self.dynamics.joint_names))
         self._qdd = np.zeros(len(self.dynamics.joint_names))
-        self._pose_time = self._gravity_time = self._inertia_time = math.nan
-        self._gravity = [0.0] * len(hw_names)
-        self._inertia = [0.0] * len(hw_names)
+        self.gravity = [0.0] * len(hw_names)
+        self.inertia = [0.0] * len(hw_names)
+        self.wants_inertia = False
+        self._same_order = np.array_equal(self._to_model, np.arange(len(self._to_model))) and \
+            len(self._to_model) == len(self.dynamics.joint_names)
 
-    def _pose(self, time_s: float) -> None:
-        if time_s != self._pose_time:
-            self._q[self._to_model] = self.context.hardware.position
-            self.dynamics.set_pose(self._q)
-            self._pose_time = time_s
-
-    def gravity(self, time_s: float) -> list[float]:
-        """Per hardware joint, the effort [N or N·m] that holds the measured pose against gravity."""
-        if time_s != self._gravity_time:
-            self._pose(time_s)
-            self._gravity = self.dynamics.gravity_at_pose()[self._to_model].tolist()
-            self._gravity_time = time_s
-        return self._gravity
-
-    def inertia(self, time_s: float) -> list[float]:
-        """Per hardware joint, ``M(q)·q̈_ref`` [N or N·m] for the acceleration references."""
-        if time_s != self._inertia_time:
-            self._pose(time_s)
-            self._qdd[self._to_model] = self.context.acceleration_references
-            self._inertia = self.dynamics.inertia_at_pose(self._qdd)[self._to_model].tolist()
-            self._inertia_time = time_s
-        return self._inertia
+    def update(self, time_s: float, period_s: float) -> None:
+        dynamics, context = self.dynamics, self.context
+        if self._same_order:  # the usual case: hardware joints are the model's, in its order
+            dynamics.set_pose(context.hardware.position)
+            self.gravity = dynamics.gravity_at_pose().tolist()
+            if self.wants_inertia:
+                self.inertia = dynamics.inertia_at_pose(context.acceleration_references).tolist()
+            return
+        self._q[self._to_model] = context.hardware.position
+        dynamics.set_pose(self._q)
+        self.gravity = dynamics.gravity_at_pose()[self._to_model].tolist()
+        if self.wants_inertia:
+            self._qdd[self._to_model] = context.acceleration_references
+            self.inertia = dynamics.inertia_at_pose(self._qdd)[self._to_model].tolist()
 
 
 class ControlContext:

@@ -114,7 +114,10 @@ class JointPositionController(_EffortJointController):
         self._gravity = "gravity" in self.feedforward_terms
         self._damping = "damping" in self.feedforward_terms
         self._inertia = "inertia" in self.feedforward_terms
-        self._model = self.context.feedforward if (self._gravity or self._inertia) else None
+        self.uses_model = self._gravity or self._inertia
+        self._model = self.context.feedforward if self.uses_model else None
+        if self._inertia:
+            self._model.wants_inertia = True
         self._accelerations = self.context.acceleration_references
 
     def set_command(self, position: float, velocity: float = 0.0, acceleration: float = 0.0) -> None:
@@ -125,6 +128,12 @@ class JointPositionController(_EffortJointController):
             position = self._finite(position, "command.position")
             velocity = self._finite(velocity, "command.velocity")
             acceleration = self._finite(acceleration, "command.acceleration")
+        self._command = (position, velocity, acceleration)
+        self._accelerations[self.index] = acceleration
+
+    def set_reference(self, position: float, velocity: float, acceleration: float) -> None:
+        """The door for a chained controller upstream in the same loop (a trajectory executor),
+        whose references are finite by construction: no validation, same effect as set_command."""
         self._command = (position, velocity, acceleration)
         self._accelerations[self.index] = acceleration
 
@@ -147,20 +156,16 @@ class JointPositionController(_EffortJointController):
         hw = self.hardware
         effort = self.pid.compute(position - hw.position[i], velocity - hw.velocity[i], period_s)
         if self.feedforward_terms:
-            effort += self._feedforward(time_s, velocity)
+            model = self._model
+            if self._gravity:
+                effort += model.gravity[i]
+            if self._damping:
+                effort += self.joint_damping * velocity
+            if self._inertia:
+                effort += model.inertia[i]
             limit = self.effort_limit
             effort = limit if effort > limit else -limit if effort < -limit else effort
         self.effort_command[i] = effort
-
-    def _feedforward(self, time_s: float, velocity: float) -> float:
-        i, effort = self.index, 0.0
-        if self._gravity:
-            effort += self._model.gravity(time_s)[i]
-        if self._damping:
-            effort += self.joint_damping * velocity
-        if self._inertia:
-            effort += self._model.inertia(time_s)[i]
-        return effort
 
 
 @register_controller("effort_controllers/JointVelocityController")

@@ -219,7 +219,11 @@ class ControllerManager:
 
     def _refresh(self) -> None:
         self._active = _upstream_first(self._active)
-        self.update_calls = tuple(c.update for c in self._active)
+        calls = [c.update for c in self._active]
+        users = [k for k, c in enumerate(self._active) if getattr(c, "uses_model", False)]
+        if users:  # the model feed-forward runs once, just before its first user
+            calls.insert(users[0], self.context.feedforward.update)
+        self.update_calls = tuple(calls)
 
     @property
     def active(self) -> tuple[Controller, ...]:

@@ -31,40 +31,42 @@ class RobotDynamics:
         self.damping = m.dof_damping[self.dof_adr].copy()
         self._tau = np.zeros(m.nv)
         self._qdd = np.zeros(m.nv)
+        # A robot fixed to the world: its joints are all of qpos and qvel, in order.
+        self._direct = (np.array_equal(self.qpos_adr, np.arange(m.nq))
+                        and np.array_equal(self.dof_adr, np.arange(m.nv)))
 
     def set_pose(self, q) -> None:
         """Compute the position-dependent quantities at ``q`` (zero velocity); the
         ``*_at_pose`` methods then answer for that pose without recomputing it."""
         d = self.data
-        d.qpos[self.qpos_adr] = q
-        d.qvel[:] = 0.0
-        d.qacc[:] = 0.0
-        mujoco.mj_fwdPosition(self.model, d)
+        if self._direct:
+            d.qpos[:] = q
+        else:
+            d.qpos[self.qpos_adr] = q
+        mujoco.mj_fwdPosition(self.model, d)  # qvel stays zero: this data never moves
 
     def gravity_at_pose(self) -> np.ndarray:
-        """g(q) at the pose of the last :meth:`set_pose`."""
-        self.data.qacc[:] = 0.0
-        mujoco.mj_rne(self.model, self.data, 0, self._tau)
-        return self._tau[self.dof_adr]
+        """g(q) at the pose of the last :meth:`set_pose` (a view, valid until the next call)."""
+        mujoco.mj_rne(self.model, self.data, 0, self._tau)  # without qacc: the bias, g(q) at rest
+        return self._tau if self._direct else self._tau[self.dof_adr]
 
     def inertia_at_pose(self, qdd) -> np.ndarray:
         """M(q)·qdd at the pose of the last :meth:`set_pose` (MuJoCo's sparse product)."""
-        self._qdd[self.dof_adr] = qdd
+        if self._direct:
+            self._qdd[:] = qdd
+        else:
+            self._qdd[self.dof_adr] = qdd
         mujoco.mj_mulM(self.model, self.data, self._tau, self._qdd)
-        return self._tau[self.dof_adr]
+        return self._tau if self._direct else self._tau[self.dof_adr]
 
     def inverse_dynamics(self, q, qdd=None) -> np.ndarray:
         """Joint efforts [N or N·m] holding the robot at ``q`` with acceleration ``qdd``
         (zero velocity): ``M(q)·qdd + g(q)``."""
-        m, d = self.model, self.data
-        d.qpos[self.qpos_adr] = q
-        d.qvel[:] = 0.0
-        d.qacc[:] = 0.0
+        self.set_pose(q)
+        tau = self.gravity_at_pose().copy()
         if qdd is not None:
-            d.qacc[self.dof_adr] = qdd
-        mujoco.mj_fwdPosition(m, d)
-        mujoco.mj_rne(m, d, 1, self._tau)
-        return self._tau[self.dof_adr].copy()
+            tau += self.inertia_at_pose(qdd)
+        return tau
 
     def gravity(self, q) -> np.ndarray:
         """Efforts that hold the robot still at ``q`` against gravity: g(q)."""
@@ -73,8 +75,7 @@ class RobotDynamics:
     def mass_matrix(self, q) -> np.ndarray:
         """The joint-space inertia matrix M(q) [kg or kg·m²]."""
         m, d = self.model, self.data
-        d.qpos[self.qpos_adr] = q
-        mujoco.mj_fwdPosition(m, d)
+        self.set_pose(q)
         full = np.zeros((m.nv, m.nv))
         mujoco.mj_fullM(m, d, full)
         return full[np.ix_(self.dof_adr, self.dof_adr)]

@@ -161,6 +161,7 @@ class TrajectoryExecutor(Controller):
         self.start_tolerance = params.number("start_tolerance", 1e-3, minimum=0)
         self.check_velocity_limits = params.boolean("check_velocity_limits", True)
         self.min_points = int(params.number("min_points", 1, positive=True))
+        self._checks_path = any(tol > 0 for tol in self.path_tolerance)
         params.reject_unknown({"type"})
         self.active_goal: GoalHandle | None = None
         self.goals_served = 0
@@ -327,9 +328,14 @@ class TrajectoryExecutor(Controller):
             self._supervise(time_s, plan)
 
     def _write(self) -> None:
-        ff = self.velocity_feedforward
-        for target, q, v, a in zip(self.targets, self.desired, self.desired_velocity, self.desired_acceleration):
-            target.set_command(q, v if ff else 0.0, a if ff else 0.0)
+        # References come from validated goals through polynomials: finite by construction.
+        if self.velocity_feedforward:
+            for target, q, v, a in zip(self.targets, self.desired, self.desired_velocity,
+                                       self.desired_acceleration):
+                target.set_reference(q, v, a)
+        else:
+            for target, q in zip(self.targets, self.desired):
+                target.set_reference(q, 0.0, 0.0)
 
     def _activate(self, handle: GoalHandle, time_s: float, period_s: float) -> None:
         previous = self.active_goal
@@ -362,6 +368,9 @@ class TrajectoryExecutor(Controller):
     def _supervise(self, time_s: float, plan: _Plan | None) -> None:
         goal = self.active_goal
         hw = self.hardware
+        if plan is not None and time_s + 1e-9 < plan.end_s and time_s + 1e-9 < self._next_feedback_s \
+                and not self._checks_path:
+            return  # nothing to report or check this cycle
         actual = [hw.position[i] for i in self.hw_index]
         if time_s + 1e-9 >= self._next_feedback_s:
             self._next_feedback_s += 1.0 / self.feedback_rate_hz

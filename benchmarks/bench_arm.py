@@ -1,0 +1,67 @@
+"""The 7-DOF arm executing a trajectory with seven position controllers at 1 kHz.
+
+*Bare loop*: the arm's compiled MuJoCo model, a PD law for the seven joints inline in numpy,
+``mj_step`` per millisecond. *Whole stack*: the arm7dof_streamer scenario executing the move to
+the pre-pose: trajectory executor, model feed-forward (gravity, damping, inertia), seven PID
+position controllers; without and with the trace recorder. Runs interleaved.
+"""
+
+from __future__ import annotations
+
+import statistics
+import tempfile
+import time
+
+import mujoco
+import numpy as np
+
+from benchmarks.common import Result
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import load_scenario
+
+SECONDS = 10.0
+REPEATS = 3
+PRE_POSE = [[0, 1, 0, -2, 0, 1, 0]]
+
+
+def bare_loop(scenario) -> float:
+    world = Session(scenario).world
+    m, d = world.model, world.data
+    qpos, qvel, ctrl = d.qpos[:7], d.qvel[:7], d.ctrl
+    target = np.array(PRE_POSE[0], dtype=float)
+    kp, kd = np.array([500, 500, 500, 500, 30, 30, 20.0]), np.array([50, 50, 50, 50, 2, 2, 1.0])
+    steps = round(SECONDS / world.timestep_s)
+    start = time.perf_counter()
+    for _ in range(steps):
+        ctrl[:] = kp * (target - qpos) - kd * qvel
+        mujoco.mj_step(m, d)
+    return SECONDS / (time.perf_counter() - start)
+
+
+def whole_stack(scenario, record: bool) -> float:
+    with tempfile.TemporaryDirectory() as out:
+        session = Session(scenario, out_dir=out if record else None)
+        executor = session.manager.controller("arm7dof_trajectory_controller")
+        executor.submit(executor.plan_path(PRE_POSE, timing="chapter"), now_s=0.0)
+        start = time.perf_counter()
+        session.loop.run(SECONDS)
+        rtf = SECONDS / (time.perf_counter() - start)
+        session.close()
+    return rtf
+
+
+def run() -> list[Result]:
+    scenario = load_scenario("arm7dof_streamer", ["record.every=1"])
+    bare, stack, recorded = [], [], []
+    for _ in range(REPEATS):
+        bare.append(bare_loop(scenario))
+        stack.append(whole_stack(scenario, record=False))
+        recorded.append(whole_stack(scenario, record=True))
+    bare_rtf, stack_rtf, rec_rtf = map(statistics.median, (bare, stack, recorded))
+    name = "arm7dof trajectory"
+    return [
+        Result(name, "bare MuJoCo arm loop (PD inline), real-time factor", bare_rtf, "x"),
+        Result(name, "whole stack, real-time factor", stack_rtf, "x", ">= 50", stack_rtf >= 50),
+        Result(name, "whole stack / bare loop", stack_rtf / bare_rtf, "ratio"),
+        Result(name, "whole stack recording every cycle, real-time factor", rec_rtf, "x"),
+    ]
