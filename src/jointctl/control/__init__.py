@@ -1,6 +1,7 @@
 """Controllers in the ros_control mould, and the manager that loads them from YAML."""
 
 from jointctl.control.admittance_controller import AdmittanceController
+from jointctl.control.cartesian_admittance_controller import CartesianAdmittanceController
 from jointctl.control.controller import Controller, controller_types, register_controller
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
 from jointctl.control.joint_state_controller import JointStateController, JointStateSample
@@ -9,6 +10,7 @@ from jointctl.control.pid import Pid, PidGains
 
 __all__ = [
     "AdmittanceController",
+    "CartesianAdmittanceController",
     "Controller",
     "ControllerManager",
     "JointPositionController",
