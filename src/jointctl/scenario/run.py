@@ -37,8 +37,20 @@ def run_scenario(
     rejected = {n: s.rejected_samples for n, s in session.sources.items() if s.rejected_samples}
     if rejected:
         metrics["rejected_command_samples"] = rejected
-    (out / METRICS_FILE).write_text(json.dumps(metrics, indent=2, sort_keys=False) + "\n")
+    metrics = _json_ready(metrics)
+    (out / METRICS_FILE).write_text(json.dumps(metrics, indent=2, sort_keys=False, allow_nan=False) + "\n")
     return metrics
+
+
+def _json_ready(value: Any) -> Any:
+    """Metrics as strict JSON: NaN and infinities (never settled, never happened) become null."""
+    if isinstance(value, dict):
+        return {k: _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
 
 def run_demo(out_dir: str | Path, names: Iterable[str] | None = None) -> Path:

@@ -38,12 +38,16 @@ class RobotDynamics:
     def set_pose(self, q) -> None:
         """Compute the position-dependent quantities at ``q`` (zero velocity); the
         ``*_at_pose`` methods then answer for that pose without recomputing it."""
-        d = self.data
+        m, d = self.model, self.data
         if self._direct:
             d.qpos[:] = q
         else:
             d.qpos[self.qpos_adr] = q
-        mujoco.mj_fwdPosition(self.model, d)  # qvel stays zero: this data never moves
+        # Only what inverse dynamics needs (no collisions or constraints): kinematics, the
+        # centre-of-mass frames and the composite inertia M(q). qvel stays zero: this data never moves.
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_crb(m, d)
 
     def gravity_at_pose(self) -> np.ndarray:
         """g(q) at the pose of the last :meth:`set_pose` (a view, valid until the next call)."""

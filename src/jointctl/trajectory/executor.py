@@ -472,13 +472,19 @@ class _Plan:
         if not 0 <= k < BLOCK_CYCLES or not self._rows:
             taus = (time_s - self.start_s) + period_s * np.arange(BLOCK_CYCLES)
             self._rows = []
+            n = len(executor.desired)
             for interp, columns in self.parts:
                 pos, vel, acc = interp.sample(taus)
-                self._rows.append((columns.tolist(), pos.tolist(), vel.tolist(), acc.tolist()))
+                every = len(columns) == n and bool(np.all(columns == np.arange(n)))
+                self._rows.append((None if every else columns.tolist(), pos.tolist(), vel.tolist(),
+                                   acc.tolist()))
             self._block_t0 = time_s
             k = 0
         desired, velocity, acceleration = executor.desired, executor.desired_velocity, executor.desired_acceleration
         for columns, pos, vel, acc in self._rows:
+            if columns is None:  # every joint, in order
+                desired[:], velocity[:], acceleration[:] = pos[k], vel[k], acc[k]
+                continue
             q, v, a = pos[k], vel[k], acc[k]
             for j, col in enumerate(columns):
                 desired[col], velocity[col], acceleration[col] = q[j], v[j], a[j]
