@@ -2,6 +2,7 @@
 #   make demo   create .venv, install, run the chapter's experiments into out/demo/
 #   make test   create .venv, install with test extras, run the test suite
 #   make bench  run the speed and memory benchmarks, printing ratios to a bare MuJoCo loop
+#   make ros    install Debian's ROS 1 packages and generate jointctl's message classes (make test does it)
 #
 # The virtual environment is made from Debian's /usr/bin/python3 with access to its
 # system packages, so the ROS 1 packages Debian ships (rospy, actionlib) import beside
@@ -12,7 +13,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 OUT    ?= out/demo
 
-.PHONY: demo test bench venv clean
+.PHONY: demo test bench venv ros clean
 
 $(VENV)/.installed: pyproject.toml scripts/bootstrap.sh
 	PYTHON=$(PYTHON) VENV=$(VENV) bash scripts/bootstrap.sh
@@ -23,11 +24,18 @@ venv: $(VENV)/.installed
 demo: venv
 	$(VENV)/bin/jointctl demo --out $(OUT)
 
-test: venv
+# ROS 1 from Debian (apt), the message classes jointctl carries (generated without catkin), and a
+# .pth file so the venv imports them. See scripts/install_ros.sh and scripts/gen_ros_msgs.sh.
+ros: venv
+	bash scripts/install_ros.sh
+	bash scripts/gen_ros_msgs.sh
+	echo "$(CURDIR)/build/ros/py" > "$$($(PY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')/jointctl_ros_msgs.pth"
+
+test: ros
 	$(PY) -m pytest -q
 
 bench: venv
 	$(PY) benchmarks/run.py
 
 clean:
-	rm -rf $(VENV) out
+	rm -rf $(VENV) out build

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Install the Debian packages that give a working ROS 1 for jointctl's ROS edge and its tests:
+# master, rospy, actionlib, rostopic, rosbag, roslaunch/rosparam, the message packages, genpy and
+# genmsg (to generate the action messages jointctl ships as .action files), dynamic_reconfigure.
+# Debian packages these for its own /usr/bin/python3; the project's venv sees them through
+# --system-site-packages. Does nothing when everything is already installed.
+set -euo pipefail
+PACKAGES=(
+  python3-rosmaster python3-rospy python3-actionlib python3-rostopic python3-rosbag python3-rosparam
+  python3-roslaunch python3-std-msgs python3-sensor-msgs python3-geometry-msgs python3-trajectory-msgs
+  python3-actionlib-msgs python3-genpy python3-genmsg python3-rosnode python3-rosmsg python3-rosservice
+  ros-std-msgs ros-actionlib-msgs ros-geometry-msgs ros-sensor-msgs ros-trajectory-msgs
+  python3-dynamic-reconfigure
+)
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+as_root() {
+  if [ "$(id -u)" = 0 ]; then "$@"; elif command -v sudo >/dev/null; then sudo "$@"; else
+    echo "install_ros: need root to run: $*" >&2; return 1; fi
+}
+echo "install_ros: installing ${#missing[@]} Debian packages: ${missing[*]}"
+as_root apt-get update -q
+DEBIAN_FRONTEND=noninteractive as_root apt-get install -y -q --no-install-recommends "${missing[@]}"
