@@ -33,3 +33,9 @@ for src in "$OUT"/src/*/; do
   touch "$OUT/py/$pkg/__init__.py"
 done
 echo "gen_ros_msgs: generated $(ls "$OUT/py" | tr '\n' ' ')into $OUT"
+cat > "$OUT/setup.sh" <<SETUP
+# Source this so ROS tools (rostopic, rosbag, rosmsg) find jointctl's message types:
+#   source $OUT/setup.sh
+export ROS_PACKAGE_PATH="$OUT/src\${ROS_PACKAGE_PATH:+:\$ROS_PACKAGE_PATH}"
+export PYTHONPATH="$OUT/py\${PYTHONPATH:+:\$PYTHONPATH}"
+SETUP

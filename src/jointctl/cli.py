@@ -3,6 +3,7 @@
     jointctl list                                   built-in robots and scenarios
     jointctl run SCENARIO [--out DIR] [--set K=V]   run one scenario: trace.csv, metrics.json, PNGs
     jointctl demo [--out DIR]                       every built-in experiment and report.md
+    jointctl serve ROBOT --controllers NAME         the robot as a ROS 1 node (chapter topic and action names)
     jointctl prompt arm7dof [--out DIR]             move the arm one joint at a time (prompter)
     jointctl play PATHFILE [--timing T] [--out DIR] execute a CSV path file on the arm (playfile)
 
@@ -41,6 +42,15 @@ def _parser() -> argparse.ArgumentParser:
                      help="with --realtime: loop time per wall-clock time (default 1.0)")
     run.add_argument("--package-path", action="append", default=[], metavar="DIR",
                      help="folder searched for $(find pkg) and package:// (repeatable)")
+
+    serve = sub.add_parser("serve", help="run a robot or a scenario as a ROS 1 node (chapter topic names)")
+    serve.add_argument("target", help="a built-in robot (with --controllers) or a scenario YAML / name")
+    serve.add_argument("--controllers", default="position",
+                       help="with a robot: which of its controller files to load and start (default position)")
+    serve.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a scenario field (repeatable)")
+    serve.add_argument("--sim-time", action="store_true", help="publish /clock with loop time, use_sim_time")
+    serve.add_argument("--speed", type=float, default=1.0, help="loop time per wall-clock time (default 1.0)")
 
     demo = sub.add_parser("demo", help="run every built-in experiment and write report.md")
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder")
@@ -100,6 +110,29 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _serve(args: argparse.Namespace) -> int:
+    from jointctl.scenario.session import Session
+    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
+
+    if not args.speed > 0:
+        raise JointCtlError("must be positive", field="--speed", value=args.speed)
+    try:
+        from jointctl.ros.node import check_actions, serve
+    except ImportError as exc:
+        raise JointCtlError(f"ROS 1 is not available ({exc}); install it with 'make ros'") from None
+    if args.target in builtin_robots():
+        scenario = scenario_for_robot(args.target, args.controllers, args.overrides)
+    else:
+        scenario = load_scenario(args.target, args.overrides)
+    session = Session(scenario)
+    started = {c.name for c in session.manager.active}
+    actions = {name: spec for name, spec in check_actions(
+        (scenario.robot.extras.get("ros") or {}).get("actions"), str(scenario.robot.folder)).items()
+        if spec["controller"] in started}
+    serve(session, sim_time=args.sim_time, speed=args.speed, actions=actions)
+    return 0
+
+
 def _demo(args: argparse.Namespace) -> int:
     from jointctl.scenario.run import run_demo
 
@@ -109,7 +142,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 def _prompt(args: argparse.Namespace) -> int:
-    from jointctl.tools.arm_clients import prompt_command
+    from jointctl.clients.arm import prompt_command
 
     if not args.speed > 0:
         raise JointCtlError("must be positive", field="--speed", value=args.speed)
@@ -117,7 +150,7 @@ def _prompt(args: argparse.Namespace) -> int:
 
 
 def _play(args: argparse.Namespace) -> int:
-    from jointctl.tools.arm_clients import play_command
+    from jointctl.clients.arm import play_command
 
     if not args.speed > 0:
         raise JointCtlError("must be positive", field="--speed", value=args.speed)
@@ -125,7 +158,7 @@ def _play(args: argparse.Namespace) -> int:
                         out_dir=args.out)
 
 
-_COMMANDS = {"list": _list, "run": _run, "demo": _demo, "prompt": _prompt, "play": _play}
+_COMMANDS = {"serve": _serve, "list": _list, "run": _run, "demo": _demo, "prompt": _prompt, "play": _play}
 
 
 if __name__ == "__main__":

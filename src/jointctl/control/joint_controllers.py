@@ -99,6 +99,8 @@ class JointPositionController(_EffortJointController):
     reference. The sum is clamped to the joint's effort limit.
     """
 
+    controlled = "position"  # the quantity the reference is compared with
+
     def __init__(self, name: str, params: Params) -> None:
         self._ff_params = params.child("feedforward") if params.has("feedforward") else None
         super().__init__(name, params)
@@ -174,6 +176,8 @@ class JointVelocityController(_EffortJointController):
 
     On start the command is zero velocity.
     """
+
+    controlled = "velocity"  # the quantity the reference is compared with
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         super().configure(hardware, robot)

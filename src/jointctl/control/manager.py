@@ -210,7 +210,9 @@ class ControllerManager:
                 c.stop(time_s)
                 self._active.remove(c)
                 for joint in c.joints:
-                    self.references[self.hardware.joint_index(joint)] = math.nan
+                    index = self.hardware.joint_index(joint)
+                    self.references[index] = math.nan
+                    self.context.acceleration_references[index] = 0.0
         self._refresh()
 
     @staticmethod

@@ -51,7 +51,7 @@ class ControlLoop:
 
     @property
     def time_s(self) -> float:
-        """Loop time of the next cycle [s]."""
+        """Loop time [s] of the cycle running (updated as each cycle ends), or of the next to run."""
         return self.cycle * self.period_s
 
     def add_input(self, hook: CycleHook) -> None:
@@ -69,8 +69,12 @@ class ControlLoop:
 
         Returns the number of cycles run.
         """
+        if duration_s is not None and duration_s < 0:
+            raise ValueError(f"duration_s must not be negative, got {duration_s}")
         if cycles is None:
             cycles = -1 if duration_s is None else round(duration_s / self.period_s)
+        elif cycles < 0:
+            raise ValueError(f"cycles must not be negative, got {cycles}")
         period = self.period_s
         inputs = tuple(self.inputs)
         observers = tuple(self.observers)
@@ -98,6 +102,7 @@ class ControlLoop:
                     hook(t)
                 advance(period)
                 k += 1
+                self.cycle = k  # edges read loop time (time_s) while the loop runs
                 if realtime:
                     wait((k - start_cycle) * period)
         finally:

@@ -26,7 +26,7 @@ from jointctl.tools.command_sources import CommandSource, command_source_from_co
 from jointctl.tools.recorder import TraceRecorder
 from jointctl.tools.trajectory_clients import coarse_sine
 from jointctl.trajectory.errors import InvalidTrajectory
-from jointctl.trajectory.executor import TrajectoryExecutor  # noqa: F401  (registers the controller type)
+from jointctl.trajectory.executor import TrajectoryExecutor  # also registers the controller type
 from jointctl.trajectory.messages import JointTrajectory
 
 TRACE_FILE = "trace.csv"
@@ -80,9 +80,14 @@ class Session:
         #: Handles of the scenario's trajectory goals, in the order they were sent.
         self.goals: list = []
         if scenario.goals:
-            self.loop.add_input(_goal_sender(self, [
-                (g["at_s"], self.manager.controller(g["controller"]), _goal_maker(g, scenario.source, k))
-                for k, g in enumerate(scenario.goals)]))
+            goals = []
+            for k, g in enumerate(scenario.goals):
+                executor = self.manager.controller(g["controller"])
+                if not isinstance(executor, TrajectoryExecutor):
+                    raise ConfigError("must name a trajectory executor", source=scenario.source,
+                                      field=f"goals[{k}].controller", value=g["controller"])
+                goals.append((g["at_s"], executor, _goal_maker(g, scenario.source, k, executor)))
+            self.loop.add_input(_goal_sender(self, goals))
         self.recorder: TraceRecorder | None = None
         self.out_dir = Path(out_dir) if out_dir is not None else None
         if self.out_dir is not None:
@@ -136,14 +141,17 @@ def goal_trajectory(goal: dict, source: str, index: int) -> JointTrajectory:
         raise ConfigError(f"cannot build the trajectory: {exc}", source=source, field=field) from None
 
 
-def _goal_maker(goal: dict, source: str, index: int):
+def _goal_maker(goal: dict, source: str, index: int, executor: TrajectoryExecutor):
     """A function of the executor giving the goal's trajectory when it is sent: a ``path`` is
-    timed from the executor's desired pose at that moment; anything else is built now."""
+    timed from the executor's desired pose at that moment; anything else is built now. Both are
+    checked here, before the run starts."""
     if "path" not in goal:
         trajectory = goal_trajectory(goal, source, index)
         return lambda executor: trajectory
     spec = goal["path"]
     field = f"goals[{index}].path"
+    if not isinstance(spec, dict):
+        raise ConfigError("must be a mapping {points, timing}", source=source, field=field, value=spec)
     points, timing = spec.get("points"), spec.get("timing", "ruckig")
     if timing not in ("chapter", "ruckig"):
         raise ConfigError("must be chapter or ruckig", source=source, field=f"{field}.timing", value=timing)
@@ -153,6 +161,10 @@ def _goal_maker(goal: dict, source: str, index: int):
         array = None
     if array is None or array.ndim != 2 or not np.isfinite(array).all():
         raise ConfigError("must be a list of joint-angle lists", source=source, field=f"{field}.points",
+                          value=points)
+    if array.shape[1] != len(executor.joint_names):
+        raise ConfigError(f"each point needs {len(executor.joint_names)} values "
+                          f"({', '.join(executor.joint_names)})", source=source, field=f"{field}.points",
                           value=points)
     return lambda executor: executor.plan_path(array, timing=timing)
 

@@ -58,6 +58,8 @@ class RobotFiles:
     description: Path
     controller_files: dict[str, Path]
     folder: Path
+    #: The manifest's other sections (``serve``: defaults for ``jointctl serve``; ``ros``: actions).
+    extras: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -337,4 +339,31 @@ def read_robot_manifest(path: Path) -> RobotFiles:
             raise ConfigError("controller file not found", source=source,
                               field=f"controllers.{key}", value=rel)
         files[str(key)] = (folder / rel).resolve()
-    return RobotFiles(folder.name, (folder / desc).resolve(), files, folder.resolve())
+    extras = {k: v for k, v in raw.items() if k not in ("description", "controllers")}
+    return RobotFiles(folder.name, (folder / desc).resolve(), files, folder.resolve(), extras)
+
+
+def scenario_for_robot(robot: str, controllers: str, overrides: Iterable[str] = ()) -> Scenario:
+    """A scenario that brings up a built-in robot with every controller of one of its controller
+    files (as the chapter's launch files do), at the manifest's ``serve`` defaults, until stopped."""
+    robots = builtin_robots()
+    if robot not in robots:
+        raise ConfigError(f"no such robot (built-in: {', '.join(robots)})", field="robot", value=robot)
+    files = read_robot_manifest(robots[robot] / "robot.yaml")
+    if controllers not in files.controller_files:
+        raise ConfigError(f"the robot has no such controller file (it has: {', '.join(files.controller_files)})",
+                          field="--controllers", value=controllers)
+    tree = read_yaml(files.controller_files[controllers])
+    body = next(iter(tree.values())) if len(tree) == 1 and all(isinstance(v, dict) and "type" not in v
+                                                               for v in tree.values()) else tree
+    defaults = files.extras.get("serve") or {}
+    raw = {
+        "name": f"{robot}_{controllers}", "robot": robot, "controller_file": controllers,
+        "start_controllers": [name for name, c in body.items() if isinstance(c, dict) and "type" in c],
+        "gravity": defaults.get("gravity", -9.81), "initial_positions": defaults.get("initial_positions", {}),
+        "duration_s": 1e9, "record": {"every": 1},
+    }
+    for item in overrides:
+        key, value = parse_override(item)
+        set_dotted(raw, key, value, source="--set")
+    return _Validator(raw, str(files.folder / "robot.yaml"), files.folder).scenario()

@@ -87,12 +87,10 @@ class TrajectoryFeedback:
 class GoalHandle:
     """One goal's life. ``wait()`` blocks another thread until the terminal result."""
 
-    _ids = itertools.count(1)
-
-    def __init__(self, trajectory: JointTrajectory,
+    def __init__(self, goal_id: int, trajectory: JointTrajectory,
                  on_feedback: Callable[[TrajectoryFeedback], None] | None = None,
                  on_done: Callable[[GoalResult], None] | None = None) -> None:
-        self.id = next(self._ids)
+        self.id = goal_id
         self.trajectory = trajectory
         self.on_feedback = on_feedback
         self.on_done = on_done
@@ -101,6 +99,7 @@ class GoalHandle:
         self.validated: ValidatedTrajectory | None = None
         self.cancel_requested = False
         self._done = threading.Event()
+        self._finish_lock = threading.Lock()
 
     @property
     def done(self) -> bool:
@@ -116,10 +115,11 @@ class GoalHandle:
 
     def _finish(self, status: GoalStatus, code: TrajectoryErrorCode, text: str, time_s: float) -> bool:
         """Record the terminal result once; later calls are ignored (returns False)."""
-        if self.result is not None:
-            return False
-        self.status = status
-        self.result = GoalResult(status, code, text, time_s)
+        with self._finish_lock:
+            if self.result is not None:
+                return False
+            self.status = status
+            self.result = GoalResult(status, code, text, time_s)
         self._done.set()
         if self.on_done is not None:
             self.on_done(self.result)
@@ -169,6 +169,8 @@ class TrajectoryExecutor(Controller):
         self._pending: GoalHandle | None = None
         self._streamed: tuple | None = None
         self._lock = threading.Lock()
+        self._goal_ids = itertools.count(1)
+        self._running = False
 
     def _per_joint(self, params: Params, key: str, default: float, *, positive: bool = False) -> tuple:
         """A scalar for every joint, or a mapping joint -> value (missing joints get ``default``)."""
@@ -212,8 +214,10 @@ class TrajectoryExecutor(Controller):
         self._next_feedback_s = time_s
         self._stream_deadline_s = math.inf
         self._write()
+        self._running = True
 
     def stop(self, time_s: float) -> None:
+        self._running = False
         for handle in (self._pending, self.active_goal):
             if handle is not None:
                 handle._finish(GoalStatus.ABORTED, TrajectoryErrorCode.INVALID_GOAL,
@@ -233,9 +237,12 @@ class TrajectoryExecutor(Controller):
         handle then never becomes active. ``now_s`` is the loop time (default: the
         time of the last cycle).
         """
-        handle = GoalHandle(trajectory, on_feedback, on_done)
+        handle = GoalHandle(next(self._goal_ids), trajectory, on_feedback, on_done)
         now = self._last_time_s if now_s is None else now_s
         try:
+            if not self._running:
+                raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL, "the trajectory controller is not running",
+                                        value=self.name)
             points = trajectory.points if isinstance(trajectory, JointTrajectory) else ()
             if isinstance(points, tuple) and 0 < len(points) < self.min_points:
                 raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL,
@@ -243,6 +250,8 @@ class TrajectoryExecutor(Controller):
             handle.validated = validate_trajectory(
                 trajectory, self.specs, now_s=now, current_positions=list(self.desired),
                 start_tolerance=self.start_tolerance, check_velocity=self.check_velocity_limits)
+            if self.check_velocity_limits:
+                self._check_time_left(handle.validated, now)
         except InvalidTrajectory as exc:
             handle._finish(GoalStatus.REJECTED, exc.error_code, str(exc), now)
             raise
@@ -252,6 +261,26 @@ class TrajectoryExecutor(Controller):
             previous._finish(GoalStatus.PREEMPTED, TrajectoryErrorCode.SUCCESSFUL,
                              f"replaced by goal {handle.id} before it started", now)
         return handle
+
+    def _check_time_left(self, goal: ValidatedTrajectory, now_s: float) -> None:
+        """A goal stamped in the past skips its past points: the first future point must still be
+        reachable from the current desired position within the velocity limits."""
+        times = goal.start_time_s + goal.times_s
+        future = np.flatnonzero(times > now_s + 1e-9)
+        if future.size == 0:
+            return
+        k = int(future[0])
+        left = times[k] - now_s
+        current = np.asarray(self.desired)[list(goal.joint_indices)]
+        for j, col in enumerate(goal.joint_indices):
+            speed = abs(goal.positions[k, j] - current[j]) / left
+            limit = self.specs[col].max_velocity
+            if speed > limit * (1 + 1e-9):
+                raise InvalidTrajectory(
+                    TrajectoryErrorCode.INVALID_GOAL,
+                    f"from the current position it needs {speed:.4g}/s in the {left:.4g} s left before "
+                    f"this point (limit {limit:g}/s)", point=k, joint=self.specs[col].name,
+                    value=float(goal.positions[k, j]))
 
     def plan_path(self, path: Sequence[Sequence[float]], *, timing: str = "ruckig",
                   joint_names: Sequence[str] | None = None, start_s: float = 0.1) -> JointTrajectory:
@@ -296,7 +325,11 @@ class TrajectoryExecutor(Controller):
             if spec.lower is not None and not spec.lower <= q <= spec.upper:
                 raise InvalidCommand(f"outside the joint's range [{spec.lower}, {spec.upper}]",
                                      source=self.name, field=f"reference.position[{spec.name}]", value=q)
-        self._streamed = (tuple(map(float, positions)), tuple(map(float, velocities)))
+            if abs(v) > spec.max_velocity:
+                raise InvalidCommand(f"above the joint's velocity limit {spec.max_velocity:g}",
+                                     source=self.name, field=f"reference.velocity[{spec.name}]", value=v)
+        with self._lock:
+            self._streamed = (tuple(map(float, positions)), tuple(map(float, velocities)))
 
     # -- the cycle ---------------------------------------------------------------------------
     _last_time_s = 0.0
@@ -353,8 +386,11 @@ class TrajectoryExecutor(Controller):
         self._next_feedback_s = time_s
 
     def _take_stream(self, time_s: float, period_s: float) -> None:
-        positions, velocities = self._streamed
-        self._streamed = None
+        with self._lock:
+            streamed, self._streamed = self._streamed, None
+        if streamed is None:
+            return
+        positions, velocities = streamed
         if self.active_goal is not None:
             self.active_goal._finish(GoalStatus.PREEMPTED, TrajectoryErrorCode.SUCCESSFUL,
                                      "replaced by streamed references", time_s)

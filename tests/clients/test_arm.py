@@ -18,7 +18,7 @@ import pytest
 
 from jointctl.errors import JointCtlError
 from jointctl.paths import robots_dir
-from jointctl.tools.arm_clients import (
+from jointctl.clients.arm import (
     ANGLE_PROMPT,
     PRE_POSE,
     GoalOutcome,

@@ -120,7 +120,11 @@ class InProcessGoalSender:
         from jointctl.scenario.spec import load_scenario
 
         session = Session(load_scenario(scenario), out_dir=out_dir, realtime=realtime, speed=speed)
-        return cls(session, controller)
+        try:
+            return cls(session, controller)
+        except BaseException:
+            session.close()
+            raise
 
     def current_positions(self) -> tuple[float, ...]:
         position = self.hardware.position

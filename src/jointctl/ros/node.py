@@ -1,0 +1,219 @@
+"""Run a scenario's control loop as a ROS 1 node, with the chapter's topic and action names.
+
+Under the robot's namespace (``one_DOF_robot``, ``arm7dof``):
+
+- ``joint_states`` (sensor_msgs/JointState) at the joint state controller's ``publish_rate``;
+- ``<controller>/command`` (std_msgs/Float64) for every started joint controller that no other
+  controller commands; non-finite values are refused, logged and ignored;
+- ``<controller>/state`` (control_msgs/JointControllerState) at ``state_rate_hz``;
+- ``<executor>/follow_joint_trajectory`` (control_msgs/FollowJointTrajectory) for every
+  trajectory executor, plus the chapter's servers named in the robot's ``robot.yaml``
+  (``example_traj_action_server``, ``trajActionServer``);
+- each force-torque sensor's topic from the URDF (``/ft_sensor_topic``) at its update rate.
+
+The controller YAML is loaded onto the parameter server as roslaunch's ``rosparam load`` would.
+The loop runs paced to the wall clock; with ``sim_time`` it publishes ``/clock`` (loop time) and
+sets ``/use_sim_time``. If no master answers at ``ROS_MASTER_URI`` one is started.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import time
+import urllib.parse
+from collections.abc import Mapping
+
+import rosgraph
+import rospy
+from control_msgs.msg import JointControllerState
+from geometry_msgs.msg import WrenchStamped
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+
+from jointctl.control.joint_controllers import _EffortJointController
+from jointctl.control.joint_state_controller import JointStateController
+from jointctl.control.manager import read_yaml
+from jointctl.errors import ConfigError, InvalidCommand, JointCtlError
+from jointctl.ros.actions import TrajectoryActionServer
+from jointctl.ros.conversions import joint_state_to_ros, wrench_to_ros
+from jointctl.runtime.clock import WallClockPacer
+from jointctl.scenario.session import Session
+from jointctl.trajectory.executor import TrajectoryExecutor
+
+MASTER_TIMEOUT_S = 10.0
+
+
+class LoopClock:
+    """Maps loop time to ROS time: the wall clock at loop time zero plus loop time (at speed 1),
+    or loop time itself on simulated time (``/clock``)."""
+
+    def __init__(self, loop, sim_time: bool) -> None:
+        self.loop = loop
+        self.sim_time = sim_time
+        self.origin_s = 0.0
+
+    def start(self) -> None:
+        self.origin_s = 0.0 if self.sim_time else time.time() - self.loop.time_s
+
+    def ros_time_at_loop_zero(self) -> float:
+        return self.origin_s
+
+    def ros_time(self, loop_s: float) -> rospy.Time:
+        return rospy.Time.from_sec(self.origin_s + loop_s)
+
+    def loop_now(self) -> float:
+        return self.loop.time_s
+
+
+def ensure_master() -> subprocess.Popen | None:
+    """Join the master at ROS_MASTER_URI, or start one there; returns the started process."""
+    if rosgraph.Master("/jointctl").is_online():
+        return None
+    uri = urllib.parse.urlparse(rosgraph.get_master_uri())
+    process = subprocess.Popen(["rosmaster", "--core", "-p", str(uri.port or 11311)],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + MASTER_TIMEOUT_S
+    while not rosgraph.Master("/jointctl").is_online():
+        if process.poll() is not None or time.monotonic() > deadline:
+            process.terminate()
+            raise JointCtlError("could not start a ROS master", field="ROS_MASTER_URI",
+                                value=rosgraph.get_master_uri())
+        time.sleep(0.05)
+    return process
+
+
+class RosNode:
+    """The session's robot on the ROS graph."""
+
+    def __init__(self, session: Session, *, sim_time: bool = False,
+                 actions: Mapping[str, Mapping[str, str]] | None = None,
+                 state_rate_hz: float = 50.0) -> None:
+        self.session = session
+        manager = session.manager
+        self.namespace = manager.namespace or session.robot.name
+        self.clock = LoopClock(session.loop, sim_time)
+        self.publishers: list[rospy.Publisher] = []
+        ns = f"/{self.namespace}"
+        if sim_time:
+            rospy.set_param("/use_sim_time", True)
+            clock_pub = rospy.Publisher("/clock", Clock, queue_size=10)
+            session.loop.add_observer(lambda t: clock_pub.publish(Clock(clock=rospy.Time.from_sec(t))))
+        tree = read_yaml(session.scenario.controller_file)
+        rospy.set_param(ns, tree.get(self.namespace, tree) if isinstance(tree, dict) else {})
+        for controller in manager.active:
+            if isinstance(controller, JointStateController):
+                pub = rospy.Publisher(f"{ns}/joint_states", JointState, queue_size=10)
+                controller.subscribe(lambda sample, pub=pub: pub.publish(
+                    joint_state_to_ros(sample, self.clock.ros_time(sample.time_s))))
+            elif isinstance(controller, _EffortJointController) and manager.command_owner(controller.name) is None:
+                rospy.Subscriber(f"{ns}/{controller.name}/command", Float64, self._command_callback(controller),
+                                 queue_size=1)
+        self._state_publishers(ns, state_rate_hz)
+        self._sensor_publishers()
+        self.servers = [TrajectoryActionServer(f"{ns}/{c.name}/follow_joint_trajectory",
+                                               "follow_joint_trajectory", c, self.clock)
+                        for c in manager.active if isinstance(c, TrajectoryExecutor)]
+        for name, spec in (actions or {}).items():
+            executor = manager.controller(spec["controller"])
+            self.servers.append(TrajectoryActionServer(name, spec["type"], executor, self.clock))
+
+    def _command_callback(self, controller):
+        def on_command(msg: Float64) -> None:
+            try:
+                controller.set_command(msg.data)
+            except InvalidCommand as exc:
+                rospy.logwarn("jointctl: refused %s", exc)
+        return on_command
+
+    def _state_publishers(self, ns: str, rate_hz: float) -> None:
+        manager, loop = self.session.manager, self.session.loop
+        joint_controllers = [c for c in manager.active if isinstance(c, _EffortJointController)]
+        if not joint_controllers:
+            return
+        pubs = [(c, rospy.Publisher(f"{ns}/{c.name}/state", JointControllerState, queue_size=10))
+                for c in joint_controllers]
+        every = max(1, round(1.0 / (rate_hz * loop.period_s)))
+        hw = self.session.hardware
+        count = [0]
+
+        def publish(t: float) -> None:
+            count[0] += 1
+            if count[0] % every:
+                return
+            stamp = self.clock.ros_time(t)
+            for c, pub in pubs:
+                g = c.pid.gains
+                i = c.index
+                value = (hw.position if c.controlled == "position" else hw.velocity)[i]
+                msg = JointControllerState(
+                    set_point=c.reference, process_value=value, process_value_dot=hw.velocity[i],
+                    error=c.reference - value,
+                    time_step=loop.period_s, command=c.effort_command[i], p=g.p, i=g.i, d=g.d,
+                    i_clamp=g.i_clamp_max, antiwindup=g.antiwindup)
+                msg.header.stamp = stamp
+                pub.publish(msg)
+
+        loop.add_observer(publish)
+
+    def _sensor_publishers(self) -> None:
+        session = self.session
+        for spec in session.robot.sensors:
+            topic = spec.topic or f"{spec.name}_topic"
+            pub = rospy.Publisher(topic, WrenchStamped, queue_size=10)
+            every = max(1, round(1.0 / ((spec.update_rate_hz or 1000.0) * session.loop.period_s)))
+            wrench = session.hardware.wrenches[spec.name]
+            count = [0]
+
+            def publish(t: float, pub=pub, wrench=wrench, frame=spec.link, count=count, every=every) -> None:
+                count[0] += 1
+                if count[0] % every == 0:
+                    pub.publish(wrench_to_ros(wrench, frame, self.clock.ros_time(t)))
+
+            session.loop.add_observer(publish)
+
+    def spin(self, speed: float = 1.0) -> None:
+        """Run the loop paced to the wall clock until ROS shuts down or SIGINT/SIGTERM."""
+        loop = self.session.loop
+        loop.clock = WallClockPacer(speed)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda *_: loop.request_stop())
+        rospy.on_shutdown(loop.request_stop)
+        self.clock.start()
+        loop.run()
+
+
+def serve(session: Session, *, sim_time: bool = False, speed: float = 1.0,
+          actions: Mapping[str, Mapping[str, str]] | None = None, node_name: str | None = None) -> None:
+    """Start (or join) a master, bring the session up as a node and run until stopped."""
+    master = ensure_master()
+    try:
+        name = node_name or f"jointctl_{session.robot.name}"
+        rospy.init_node(name, anonymous=False, disable_signals=True)
+        node = RosNode(session, sim_time=sim_time, actions=actions)
+        rospy.loginfo("jointctl: %s up under /%s", session.robot.name, node.namespace)
+        node.spin(speed)
+    finally:
+        rospy.signal_shutdown("jointctl stopped")
+        if master is not None:
+            master.terminate()
+            master.wait(5)
+
+
+def check_actions(actions: object, source: str) -> dict:
+    """The ``ros.actions`` mapping of a robot.yaml: name -> {type, controller}."""
+    if actions is None:
+        return {}
+    if not isinstance(actions, dict):
+        raise ConfigError("must map action names to {type, controller}", source=source, field="ros.actions",
+                          value=actions)
+    for name, spec in actions.items():
+        if not isinstance(spec, dict) or spec.get("type") not in ("traj", "arm7dof_traj",
+                                                                   "follow_joint_trajectory"):
+            raise ConfigError("needs type traj, arm7dof_traj or follow_joint_trajectory, and a controller",
+                              source=source, field=f"ros.actions.{name}", value=spec)
+    return actions
+
+
+__all__ = ["RosNode", "check_actions", "ensure_master", "serve"]
