@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import time
 
+SPIN_S = 1e-4  # the final stretch of a wait spent spinning, not sleeping [s]
+
 
 class SimulatedClock:
     """Never waits: simulated time runs as fast as the computer can step it."""
@@ -48,7 +50,9 @@ class WallClockPacer:
         if remaining < 0:
             self.overruns += 1
             return
-        if remaining > 0.002:
-            time.sleep(remaining - 0.001)
+        # Sleep through most of the wait (it releases the GIL: ROS and web threads need it to
+        # run at all) and spin only the last SPIN_S, where sleep would overshoot.
+        if remaining > SPIN_S:
+            time.sleep(remaining - SPIN_S)
         while time.perf_counter() < deadline:
             pass

@@ -1,0 +1,113 @@
+"""jointctl serve on a real ROS graph, driven and read with ROS's own tools and clients."""
+
+from __future__ import annotations
+
+import json
+import re
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.ros.conftest import run, wait_for_topic
+
+JOINT_STATES = "/one_DOF_robot/joint_states"
+COMMAND = "/one_DOF_robot/joint1_position_controller/command"
+CLIENT = str(Path(__file__).with_name("action_client.py"))
+DROOP = 1.01 * 9.81 / 400  # the P-only position loop's gravity droop [m]
+
+
+def position(env) -> float:
+    text = wait_for_topic(env, JOINT_STATES)
+    return float(re.search(r"position: \[([-0-9.e]+)", text).group(1))
+
+
+def settle_to(env, target: float, timeout_s: float = 10.0, tol: float = 0.002) -> float:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        q = position(env)
+        if abs(q - target) < tol:
+            return q
+        time.sleep(0.2)
+    return q
+
+
+def test_joint_states_commands_and_parameters(ros_env, serve):
+    serve("one_dof", "--controllers", "position", wait_topic=JOINT_STATES)
+    text = wait_for_topic(ros_env, JOINT_STATES)
+    assert "joint1" in text and "effort" in text
+    # Spawned mid-range, it holds -0.5 minus the gravity droop.
+    assert position(ros_env) == pytest.approx(-0.5 - DROOP, abs=0.002)
+    run(ros_env, "rostopic", "pub", "-1", COMMAND, "std_msgs/Float64", "--", "-0.3")
+    assert settle_to(ros_env, -0.3 - DROOP) == pytest.approx(-0.3 - DROOP, abs=0.002)
+    # The chapter's YAML is on the parameter server as rosparam load would put it.
+    assert run(ros_env, "rosparam", "get", "/one_DOF_robot/joint1_position_controller/pid/p").stdout.strip() == "400.0"
+    state = wait_for_topic(ros_env, "/one_DOF_robot/joint1_position_controller/state")
+    assert "set_point: -0.3" in state
+
+
+def test_non_finite_commands_are_refused_and_the_joint_holds(ros_env, serve):
+    serve("one_dof", "--controllers", "position", wait_topic=JOINT_STATES)
+    run(ros_env, "rostopic", "pub", "-1", COMMAND, "std_msgs/Float64", "--", "nan")
+    time.sleep(1.0)
+    assert position(ros_env) == pytest.approx(-0.5 - DROOP, abs=0.002)
+
+
+def test_joint_states_rate_and_the_force_sensor(ros_env, serve):
+    serve("one_dof", "--controllers", "position", wait_topic=JOINT_STATES)
+    hz = run(ros_env, "timeout", "-s", "INT", "4", "rostopic", "hz", JOINT_STATES, check=False).stdout
+    rates = [float(r) for r in re.findall(r"average rate: ([0-9.]+)", hz)]
+    assert rates and rates[-1] == pytest.approx(50.0, rel=0.1)
+    wrench = wait_for_topic(ros_env, "/ft_sensor_topic")
+    force_z = float(re.search(r"force:\s*\n\s*x: \S+\n\s*y: \S+\n\s*z: (\S+)", wrench).group(1))
+    assert force_z == pytest.approx(-0.01 * 9.81, abs=1e-3)  # the plate's own weight, negative
+
+
+def test_rosbag_records_the_robot(ros_env, serve, tmp_path):
+    serve("one_dof", "--controllers", "position", wait_topic=JOINT_STATES)
+    bag = tmp_path / "run.bag"
+    run(ros_env, "timeout", "-s", "INT", "4", "rosbag", "record", "-O", str(bag), JOINT_STATES,
+        "/ft_sensor_topic", check=False, timeout=30)
+    info = run(ros_env, "rosbag", "info", str(bag)).stdout
+    assert "sensor_msgs/JointState" in info and "geometry_msgs/WrenchStamped" in info
+    count = int(re.search(rf"{JOINT_STATES}\s+(\d+) msgs", info).group(1))
+    assert count >= 50  # at least a second of joint states at 50 Hz
+
+
+def client(env, kind, server, joint_names, points, *extra):
+    result = run(env, sys.executable, CLIENT, kind, server,
+                 json.dumps({"joint_names": joint_names, "points": points}), *extra, timeout=90)
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def test_follow_joint_trajectory_succeeds_and_bad_goals_are_rejected(ros_env, serve):
+    serve("one_dof", "--controllers", "trajectory", wait_topic=JOINT_STATES)
+    server = "/one_DOF_robot/joint1_trajectory_controller/follow_joint_trajectory"
+    done = client(ros_env, "follow", server, ["joint1"], [[1.0, [-0.4]], [2.0, [-0.3]]])
+    assert done["state"] == "SUCCEEDED" and done["result"]["error_code"] == 0
+    assert done["feedback"] > 10
+    assert position(ros_env) == pytest.approx(-0.3, abs=0.002)  # feed-forward: no droop
+    refused = client(ros_env, "follow", server, ["joint9"], [[1.0, [-0.4]]])
+    assert refused["state"] == "REJECTED" and refused["result"]["error_code"] == -2  # INVALID_JOINTS
+    assert "joint9" in refused["text"]
+    beyond = client(ros_env, "follow", server, ["joint1"], [[1.0, [0.5]]])
+    assert beyond["state"] == "REJECTED" and beyond["result"]["error_code"] == -1
+    assert position(ros_env) == pytest.approx(-0.3, abs=0.002)  # nothing moved
+
+
+def test_the_chapters_trajectory_action_server(ros_env, serve):
+    serve("one_dof", "--controllers", "trajectory", wait_topic=JOINT_STATES)
+    done = client(ros_env, "traj", "example_traj_action_server", ["joint1"], [[0.5, [-0.45]], [1.0, [-0.4]]])
+    assert done["state"] == "SUCCEEDED" and done["result"]["rtn_status"] == 0
+
+
+def test_cancel_ends_the_goal_preempted_and_the_joint_stops(ros_env, serve):
+    serve("one_dof", "--controllers", "trajectory", wait_topic=JOINT_STATES)
+    server = "/one_DOF_robot/joint1_trajectory_controller/follow_joint_trajectory"
+    done = client(ros_env, "follow", server, ["joint1"], [[6.0, [-0.1]]], "--cancel-after", "2.0")
+    assert done["state"] == "PREEMPTED"
+    q1 = position(ros_env)
+    time.sleep(1.0)
+    assert position(ros_env) == pytest.approx(q1, abs=0.002)  # at rest, short of the goal
+    assert q1 < -0.15
