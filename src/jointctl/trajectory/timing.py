@@ -79,9 +79,10 @@ def chapter_timing(path: Any, max_velocity: Any, *, velocity_fraction: float = 0
     Point 0 is at t = 0; each next point follows after
     ``max_i |Δq_i| / (velocity_fraction * max_velocity_i)``, but at least
     ``min_segment_s``. ``max_velocity`` is per joint (J,) or a scalar, per s;
-    ``inf`` means unlimited. With the chapter's 7-DOF limits
-    ``[0.17, 0.17, 0.3, 0.3, 0.4, 0.4, 0.4]`` the move from zeros to
-    ``[0, 1, 0, -2, 0, 1, 0]`` takes 2 / (0.5 * 0.3) = 13.33 s.
+    ``inf`` means unlimited. With the chapter's client's 7-DOF limits
+    ``[0.17, 0.17, 0.3, 0.3, 0.4, 0.4, 0.4]`` (the arm's URDF says 0.2, 0.2, 0.3, 0.3, 0.4, 0.5,
+    0.4; joint 3 sets the pace either way) the move from zeros to ``[0, 1, 0, -2, 0, 1, 0]``
+    takes 2 / (0.5 * 0.3) = 13.33 s.
 
     Raises:
         ValueError: bad shapes, no points, NaN, non-positive limits/fraction/minimum.
