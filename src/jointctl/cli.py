@@ -6,6 +6,9 @@
     jointctl serve ROBOT --controllers NAME         the robot as a ROS 1 node (chapter topic and action names)
     jointctl prompt arm7dof [--out DIR]             move the arm one joint at a time (prompter)
     jointctl play PATHFILE [--timing T] [--out DIR] execute a CSV path file on the arm (playfile)
+    jointctl prompt arm7dof --ros / play PATHFILE --ros   the same clients on a served arm (actionlib)
+    jointctl sine [--namespace NS] [--joint J]      the chapter's sine commander as a ROS node
+    jointctl traj-client [--seed N] [--server S]    the chapter's example trajectory action client
 
 Every error a user can cause is printed as one line naming the file, field
 and value, with exit status 2.
@@ -66,6 +69,18 @@ def _parser() -> argparse.ArgumentParser:
         client.add_argument("--speed", type=float, default=1.0,
                             help="with --realtime: loop time per wall-clock time (default 1.0)")
         client.add_argument("--out", type=Path, help="record trace.csv into this folder")
+        client.add_argument("--ros", action="store_true",
+                            help="drive a served arm over ROS (jointctl serve arm7dof --controllers trajectory) "
+                                 "instead of an in-process simulation")
+
+    sine = sub.add_parser("sine", help="the chapter's sine commander: publish a sine to a served robot (ROS)")
+    sine.add_argument("--namespace", default="one_DOF_robot", help="the robot's namespace (default one_DOF_robot)")
+    sine.add_argument("--joint", default="joint1", help="the joint whose controllers are commanded (default joint1)")
+
+    traj = sub.add_parser("traj-client", help="the chapter's example trajectory client: a coarse sine goal (ROS)")
+    traj.add_argument("--seed", type=int, default=7, help="seed of the irregular sample times (default 7)")
+    traj.add_argument("--server", default="example_traj_action_server",
+                      help="the TrajAction server (default example_traj_action_server)")
     return parser
 
 
@@ -146,7 +161,7 @@ def _prompt(args: argparse.Namespace) -> int:
 
     if not args.speed > 0:
         raise JointCtlError("must be positive", field="--speed", value=args.speed)
-    return prompt_command(realtime=args.realtime, speed=args.speed, out_dir=args.out)
+    return prompt_command(realtime=args.realtime, speed=args.speed, out_dir=args.out, ros=args.ros)
 
 
 def _play(args: argparse.Namespace) -> int:
@@ -155,10 +170,27 @@ def _play(args: argparse.Namespace) -> int:
     if not args.speed > 0:
         raise JointCtlError("must be positive", field="--speed", value=args.speed)
     return play_command(args.pathfile, timing=args.timing, realtime=args.realtime, speed=args.speed,
-                        out_dir=args.out)
+                        out_dir=args.out, ros=args.ros)
 
 
-_COMMANDS = {"serve": _serve, "list": _list, "run": _run, "demo": _demo, "prompt": _prompt, "play": _play}
+def _ros_clients():
+    try:
+        from jointctl.ros import clients
+    except ImportError as exc:
+        raise JointCtlError(f"ROS 1 is not available ({exc}); install it with 'make ros'") from None
+    return clients
+
+
+def _sine(args: argparse.Namespace) -> int:
+    return _ros_clients().sine_command(namespace=args.namespace, joint=args.joint)
+
+
+def _traj_client(args: argparse.Namespace) -> int:
+    return _ros_clients().traj_client_command(seed=args.seed, server=args.server)
+
+
+_COMMANDS = {"serve": _serve, "list": _list, "run": _run, "demo": _demo, "prompt": _prompt, "play": _play,
+             "sine": _sine, "traj-client": _traj_client}
 
 
 if __name__ == "__main__":

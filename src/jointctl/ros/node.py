@@ -9,7 +9,9 @@ Under the robot's namespace (``one_DOF_robot``, ``arm7dof``):
 - ``<executor>/follow_joint_trajectory`` (control_msgs/FollowJointTrajectory) for every
   trajectory executor, plus the chapter's servers named in the robot's ``robot.yaml``
   (``example_traj_action_server``, ``trajActionServer``);
-- each force-torque sensor's topic from the URDF (``/ft_sensor_topic``) at its update rate.
+- each force-torque sensor's topic from the URDF (``/ft_sensor_topic``) at its update rate;
+- a dynamic_reconfigure server per PID at ``<controller>/pid``: gains change while running,
+  validated (finite, non-negative), applied at the next cycle.
 
 The controller YAML is loaded onto the parameter server as roslaunch's ``rosparam load`` would.
 The loop runs paced to the wall clock; with ``sim_time`` it publishes ``/clock`` (loop time) and
@@ -38,6 +40,7 @@ from jointctl.control.manager import read_yaml
 from jointctl.errors import ConfigError, InvalidCommand, JointCtlError
 from jointctl.ros.actions import TrajectoryActionServer
 from jointctl.ros.conversions import joint_state_to_ros, wrench_to_ros
+from jointctl.ros.gains import attach_gain_servers
 from jointctl.runtime.clock import WallClockPacer
 from jointctl.scenario.session import Session
 from jointctl.trajectory.executor import TrajectoryExecutor
@@ -118,6 +121,8 @@ class RosNode:
         for name, spec in (actions or {}).items():
             executor = manager.controller(spec["controller"])
             self.servers.append(TrajectoryActionServer(name, spec["type"], executor, self.clock))
+        #: dynamic_reconfigure servers at <ns>/<controller>/pid: PID gains changed while running.
+        self.gain_servers = attach_gain_servers(self)
 
     def _command_callback(self, controller):
         def on_command(msg: Float64) -> None:

@@ -1,0 +1,160 @@
+"""PID gains changed on a running node through dynamic_reconfigure, checked with ROS's own tools."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.ros.conftest import run, wait_for_topic
+
+pytest.importorskip("dynamic_reconfigure.server")
+
+HERE = Path(__file__).parent
+SERVE = str(HERE / "gains_serve.py")
+CLIENT = str(HERE / "reconfigure_client.py")
+JOINT_STATES = "/one_DOF_robot/joint_states"
+POSITION_PID = "/one_DOF_robot/joint1_position_controller/pid"
+POSITION_STATE = "/one_DOF_robot/joint1_position_controller/state"
+DROOP = 1.01 * 9.81 / 400  # the P-only position loop's gravity droop at p = 400 [m]
+
+
+@pytest.fixture
+def serve_gains(ros_env):
+    """``jointctl serve ARGS`` with attach_gain_servers; stopped (SIGTERM) afterwards."""
+    processes = []
+
+    def start(*args: str):
+        process = subprocess.Popen([sys.executable, SERVE, *args], env=ros_env, stdout=subprocess.PIPE,
+                                   stderr=subprocess.STDOUT, text=True)
+        processes.append(process)
+        wait_for_topic(ros_env, JOINT_STATES)
+        return process
+
+    yield start
+    for process in processes:
+        process.terminate()
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+
+
+def reconfigure(env, server: str, changes: dict | None = None) -> dict:
+    args = [sys.executable, CLIENT, server] + ([json.dumps(changes)] if changes is not None else [])
+    return json.loads(run(env, *args, timeout=60).stdout.strip().splitlines()[-1])
+
+
+def state_gains(env, topic: str = POSITION_STATE) -> dict:
+    text = wait_for_topic(env, topic)
+    return {k: float(re.search(rf"^{k}: (\S+)$", text, re.M).group(1)) for k in ("p", "i", "d")}
+
+
+def position(env) -> float:
+    text = wait_for_topic(env, JOINT_STATES)
+    return float(re.search(r"position: \[([-0-9.e]+)", text).group(1))
+
+
+def settle_to(env, target: float, timeout_s: float = 10.0, tol: float = 0.001) -> float:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        q = position(env)
+        if abs(q - target) < tol:
+            return q
+        time.sleep(0.2)
+    return q
+
+
+def test_the_server_starts_from_the_yaml_gains(ros_env, serve_gains):
+    serve_gains("one_dof", "--controllers", "position")
+    config = reconfigure(ros_env, POSITION_PID)
+    assert (config["p"], config["i"], config["d"]) == (400.0, 0.0, 0.0)
+    assert config["antiwindup"] is False
+    assert config["i_clamp_max"] == 1000.0 and config["i_clamp_min"] == -1000.0  # the effort limit
+    described = config["_descriptions"]
+    assert {n: d["type"] for n, d in described.items()} == {
+        "p": "double", "i": "double", "d": "double", "i_clamp_min": "double", "i_clamp_max": "double",
+        "antiwindup": "bool"}
+    assert all(described[n]["min"] == 0.0 for n in "pid")
+
+
+def test_a_new_p_gain_applies_on_the_running_loop(ros_env, serve_gains):
+    serve_gains("one_dof", "--controllers", "position")
+    assert position(ros_env) == pytest.approx(-0.5 - DROOP, abs=0.001)
+    config = reconfigure(ros_env, POSITION_PID, {"p": 800})
+    assert config["p"] == 800.0
+    # The controller's state reports the new gain, and the gravity droop halves.
+    deadline = time.monotonic() + 5
+    while state_gains(ros_env)["p"] != 800.0 and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert state_gains(ros_env)["p"] == 800.0
+    assert settle_to(ros_env, -0.5 - DROOP / 2) == pytest.approx(-0.5 - DROOP / 2, abs=0.001)
+    # dynamic_reconfigure mirrors the configuration on the parameter server, as rqt expects.
+    assert run(ros_env, "rosparam", "get", f"{POSITION_PID}/p").stdout.strip() == "800.0"
+
+
+@pytest.mark.parametrize("changes", [{"p": -5.0}, {"d": float("nan")}, {"i": float("inf")},
+                                     {"i_clamp_min": 10.0, "i_clamp_max": 5.0}])
+def test_invalid_gains_are_refused_and_the_gains_stay(ros_env, serve_gains, changes):
+    process = serve_gains("one_dof", "--controllers", "position")
+    config = reconfigure(ros_env, POSITION_PID, changes)
+    assert (config["p"], config["i"], config["d"]) == (400.0, 0.0, 0.0)  # the answer: unchanged
+    assert (config["i_clamp_min"], config["i_clamp_max"]) == (-1000.0, 1000.0)
+    assert state_gains(ros_env) == {"p": 400.0, "i": 0.0, "d": 0.0}
+    assert position(ros_env) == pytest.approx(-0.5 - DROOP, abs=0.001)
+    assert run(ros_env, "rosparam", "get", f"{POSITION_PID}/p").stdout.strip() == "400.0"
+    process.terminate()
+    output = process.communicate(timeout=10)[0]
+    assert "refused gains" in output
+
+
+def test_the_velocity_controller_gets_a_server_too(ros_env, serve_gains):
+    serve_gains("one_dof", "--controllers", "velocity")
+    server = "/one_DOF_robot/joint1_velocity_controller/pid"
+    before = reconfigure(ros_env, server)
+    config = reconfigure(ros_env, server, {"d": 1.5, "antiwindup": True})
+    assert config["d"] == 1.5 and config["antiwindup"] is True and config["p"] == before["p"]
+    assert state_gains(ros_env, "/one_DOF_robot/joint1_velocity_controller/state")["d"] == 1.5
+
+
+class _FakeController:
+    """Just the two doors the reconfigure callback uses."""
+
+    def __init__(self, gains):
+        from jointctl.control.pid import Pid
+        self.pid = Pid(gains)
+
+    def set_gains(self, gains):
+        self.pid.set_gains(gains)
+
+
+def test_the_callback_validates_widens_ints_and_keeps_unbounded_clamps():
+    from dynamic_reconfigure.encoding import Config, encode_description
+
+    from jointctl.control.pid import PidGains
+    from jointctl.ros.gains import _callback, pid_config_type
+
+    start = PidGains(400.0, 0.0, 0.0, -float("inf"), float("inf"))  # a joint without effort limit
+    kind = pid_config_type(start)
+    encode_description(kind)  # the description a Server publishes encodes
+    assert kind.min["p"] == 0.0 and kind.max["p"] == float("inf") and kind.all_level == 1
+    controller = _FakeController(start)
+    callback = _callback(controller, "/robot/c/pid")
+    config = Config(kind.defaults, p=800)  # an int, as a YAML ``p: 800`` on the parameter server gives
+    answer = callback(config, ~0)
+    assert controller.pid.gains.p == 800.0 and type(answer["p"]) is float  # encodes as a double
+    refused = callback(Config(answer, p=-1.0), 1)
+    assert refused["p"] == 800.0 and controller.pid.gains.p == 800.0
+    refused = callback(Config(answer, antiwindup=1.0), 1)
+    assert refused["antiwindup"] is False and controller.pid.gains == answer_gains(answer)
+
+
+def answer_gains(config):
+    from jointctl.control.pid import PidGains
+    return PidGains(config["p"], config["i"], config["d"], config["i_clamp_min"], config["i_clamp_max"],
+                    config["antiwindup"])
