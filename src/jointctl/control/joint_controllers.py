@@ -175,18 +175,33 @@ class JointVelocityController(_EffortJointController):
     """Effort from a PID on velocity error; ``d`` acts on the error's backward difference.
 
     On start the command is zero velocity.
+
+    ``command_timeout_s`` (optional, positive; default none: no watchdog, as ros_control): a
+    command older than this in loop time (since the cycle that first saw it) is replaced by zero
+    velocity, every cycle, until a new command arrives: a silent commander holds the joint
+    instead of driving it on forever.
     """
 
     controlled = "velocity"  # the quantity the reference is compared with
+
+    def __init__(self, name: str, params: Params) -> None:
+        # Read before the base class refuses unknown keys.
+        self.command_timeout_s = params.number("command_timeout_s", None, positive=True)
+        super().__init__(name, params)
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         super().configure(hardware, robot)
         self._command = 0.0
         self._last_error = 0.0
+        self._token = self._seen = None
+        self._command_time = 0.0
+        self.timed_out = False
 
     def set_command(self, velocity: float) -> None:
         """Command a velocity [m/s or rad/s]."""
         self._command = self._finite(velocity, "command")
+        # Stored after the command: a cycle that sees this token sees this command (or a newer one).
+        self._token = object()
 
     @property
     def command(self) -> float:
@@ -195,11 +210,24 @@ class JointVelocityController(_EffortJointController):
     def start(self, time_s: float) -> None:
         self._command = 0.0
         self._last_error = 0.0
+        self._token = self._seen = None
+        self._command_time = time_s
+        self.timed_out = False
         self.pid.reset()
 
     def update(self, time_s: float, period_s: float) -> None:
-        limit = self.velocity_limit
         velocity = self._command
+        timeout = self.command_timeout_s
+        if timeout is not None:
+            token = self._token
+            if token is not self._seen:  # a new command: its age counts from this cycle
+                self._seen = token
+                self._command_time = time_s
+                velocity = self._command
+            self.timed_out = time_s - self._command_time > timeout
+            if self.timed_out:
+                velocity = 0.0
+        limit = self.velocity_limit
         velocity = -limit if velocity < -limit else limit if velocity > limit else velocity
         i = self.index
         self.references[i] = velocity

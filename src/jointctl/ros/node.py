@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import threading
 import time
 import urllib.parse
 from collections.abc import Mapping
@@ -46,6 +47,7 @@ from jointctl.scenario.session import Session
 from jointctl.trajectory.executor import TrajectoryExecutor
 
 MASTER_TIMEOUT_S = 10.0
+MASTER_CHECK_S = 1.0  # how often the node checks that its master is still the one it registered with
 
 
 class LoopClock:
@@ -189,6 +191,33 @@ class RosNode:
         loop.run()
 
 
+def _watch_master(loop, lost: list) -> None:
+    """Stop the loop when the master stops answering or is replaced: rospy never re-registers,
+    so the node would silently be off the graph."""
+    master = rosgraph.Master(rospy.get_name())
+    try:
+        pid = master.getPid()
+    except Exception:  # noqa: BLE001  (any failure to reach the master counts as a miss)
+        pid = None
+    misses = 0
+    while not rospy.is_shutdown():
+        time.sleep(MASTER_CHECK_S)
+        try:
+            now = master.getPid()
+        except Exception:  # noqa: BLE001
+            misses += 1
+            if misses >= 2:
+                lost.append("stopped answering")
+                loop.request_stop()
+                return
+            continue
+        misses = 0
+        if pid is not None and now != pid:
+            lost.append("was restarted")
+            loop.request_stop()
+            return
+
+
 def serve(session: Session, *, sim_time: bool = False, speed: float = 1.0,
           actions: Mapping[str, Mapping[str, str]] | None = None, node_name: str | None = None) -> None:
     """Start (or join) a master, bring the session up as a node and run until stopped."""
@@ -198,7 +227,14 @@ def serve(session: Session, *, sim_time: bool = False, speed: float = 1.0,
         rospy.init_node(name, anonymous=False, disable_signals=True)
         node = RosNode(session, sim_time=sim_time, actions=actions)
         rospy.loginfo("jointctl: %s up under /%s", session.robot.name, node.namespace)
+        lost: list[str] = []
+        threading.Thread(target=_watch_master, args=(session.loop, lost), daemon=True,
+                         name="jointctl-master-watchdog").start()
         node.spin(speed)
+        if lost:
+            raise JointCtlError(f"the ROS master {lost[0]}; the node is no longer on the graph (rospy does "
+                                "not re-register): restart jointctl serve", field="ROS_MASTER_URI",
+                                value=rosgraph.get_master_uri())
     finally:
         rospy.signal_shutdown("jointctl stopped")
         if master is not None:
