@@ -111,3 +111,20 @@ def test_cancel_ends_the_goal_preempted_and_the_joint_stops(ros_env, serve):
     time.sleep(1.0)
     assert position(ros_env) == pytest.approx(q1, abs=0.002)  # at rest, short of the goal
     assert q1 < -0.15
+
+
+def test_sim_time_publishes_clock_and_stamps_in_loop_time(ros_env, serve):
+    serve("one_dof", "--controllers", "position", "--sim-time", wait_topic=JOINT_STATES)
+    clock = wait_for_topic(ros_env, "/clock")
+    secs = int(re.search(r"secs: (\d+)", clock).group(1))
+    assert secs < 120  # loop time since start, not the wall clock's ~1.8e9 s
+    assert run(ros_env, "rosparam", "get", "/use_sim_time").stdout.strip() == "true"
+    stamp = int(re.search(r"secs: (\d+)", wait_for_topic(ros_env, JOINT_STATES)).group(1))
+    assert stamp < 120
+
+
+def test_the_node_reports_its_loop_lateness(ros_env, serve):
+    serve("one_dof", "--controllers", "position", wait_topic=JOINT_STATES)
+    text = wait_for_topic(ros_env, "/one_DOF_robot/loop_lateness")
+    p50, p99, worst = (float(x) for x in re.search(r"data: \[([^\]]+)\]", text).group(1).split(","))
+    assert 0 <= p50 <= p99 <= worst  # milliseconds; how late is the machine's business, not the test's

@@ -11,7 +11,8 @@ Under the robot's namespace (``one_DOF_robot``, ``arm7dof``):
   (``example_traj_action_server``, ``trajActionServer``);
 - each force-torque sensor's topic from the URDF (``/ft_sensor_topic``) at its update rate;
 - a dynamic_reconfigure server per PID at ``<controller>/pid``: gains change while running,
-  validated (finite, non-negative), applied at the next cycle.
+  validated (finite, non-negative), applied at the next cycle;
+- ``loop_lateness`` once a second: the loop's jitter (p50, p99, max, ms).
 
 The controller YAML is loaded onto the parameter server as roslaunch's ``rosparam load`` would.
 The loop runs paced to the wall clock; with ``sim_time`` it publishes ``/clock`` (loop time) and
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import sys
 import threading
 import time
 import urllib.parse
@@ -33,7 +35,7 @@ from control_msgs.msg import JointControllerState
 from geometry_msgs.msg import WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, Float64MultiArray
 
 from jointctl.control.joint_controllers import _EffortJointController
 from jointctl.control.joint_state_controller import JointStateController
@@ -47,7 +49,8 @@ from jointctl.scenario.session import Session
 from jointctl.trajectory.executor import TrajectoryExecutor
 
 MASTER_TIMEOUT_S = 10.0
-MASTER_CHECK_S = 1.0  # how often the node checks that its master is still the one it registered with
+MASTER_CHECK_S = 1.0
+SWITCH_INTERVAL_S = 2e-4  # GIL hand-over interval while serving [s]  # how often the node checks that its master is still the one it registered with
 
 
 class LoopClock:
@@ -99,7 +102,7 @@ class RosNode:
         manager = session.manager
         self.namespace = manager.namespace or session.robot.name
         self.clock = LoopClock(session.loop, sim_time)
-        self.publishers: list[rospy.Publisher] = []
+        self.speed = 1.0
         ns = f"/{self.namespace}"
         if sim_time:
             rospy.set_param("/use_sim_time", True)
@@ -125,6 +128,7 @@ class RosNode:
             self.servers.append(TrajectoryActionServer(name, spec["type"], executor, self.clock))
         #: dynamic_reconfigure servers at <ns>/<controller>/pid: PID gains changed while running.
         self.gain_servers = attach_gain_servers(self)
+        self._lateness_publisher(ns)
 
     def _command_callback(self, controller):
         def on_command(msg: Float64) -> None:
@@ -164,6 +168,25 @@ class RosNode:
 
         loop.add_observer(publish)
 
+    def _lateness_publisher(self, ns: str) -> None:
+        """``<ns>/loop_lateness`` (std_msgs/Float64MultiArray, once a second): p50, p99 and max, in ms,
+        of how late each cycle's end comes against its ideal wall-clock time: the loop's jitter."""
+        pub = rospy.Publisher(f"{ns}/loop_lateness", Float64MultiArray, queue_size=1)
+        late: list[float] = []
+        loop = self.session.loop
+        per_report = max(1, round(1.0 / loop.period_s))
+
+        def measure(t: float) -> None:
+            # A cycle cannot start before its due time (the pacer waits for it): this is >= 0.
+            late.append(time.perf_counter() - loop.clock.origin_s - t / self.speed)
+            if len(late) >= per_report:
+                ordered = sorted(late)
+                late.clear()
+                pub.publish(Float64MultiArray(data=[1e3 * ordered[len(ordered) // 2],
+                                                    1e3 * ordered[int(0.99 * len(ordered))], 1e3 * ordered[-1]]))
+
+        self.session.loop.add_observer(measure)
+
     def _sensor_publishers(self) -> None:
         session = self.session
         for spec in session.robot.sensors:
@@ -183,6 +206,7 @@ class RosNode:
     def spin(self, speed: float = 1.0) -> None:
         """Run the loop paced to the wall clock until ROS shuts down or SIGINT/SIGTERM."""
         loop = self.session.loop
+        self.speed = speed
         loop.clock = WallClockPacer(speed)
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, lambda *_: loop.request_stop())
@@ -222,6 +246,9 @@ def serve(session: Session, *, sim_time: bool = False, speed: float = 1.0,
           actions: Mapping[str, Mapping[str, str]] | None = None, node_name: str | None = None) -> None:
     """Start (or join) a master, bring the session up as a node and run until stopped."""
     master = ensure_master()
+    # The loop thread must get the GIL back quickly after each sleep, while rospy's threads work:
+    # Python's default 5 ms switch interval would make cycles that late.
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
     try:
         name = node_name or f"jointctl_{session.robot.name}"
         rospy.init_node(name, anonymous=False, disable_signals=True)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 
-SPIN_S = 1e-4  # the final stretch of a wait spent spinning, not sleeping [s]
+SPIN_S = 3e-4  # the final stretch of a wait spent spinning, not sleeping [s]
 
 
 class SimulatedClock:
@@ -43,6 +43,11 @@ class WallClockPacer:
 
     def start(self) -> None:
         self._origin = time.perf_counter()
+
+    @property
+    def origin_s(self) -> float:
+        """``time.perf_counter()`` at loop time zero: loop time t is due at origin_s + t / speed."""
+        return self._origin
 
     def wait_for(self, loop_time_s: float) -> None:
         deadline = self._origin + loop_time_s / self.speed
