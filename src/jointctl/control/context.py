@@ -43,13 +43,13 @@ class ModelFeedforward:
     def update(self, time_s: float, period_s: float) -> None:
         dynamics, context = self.dynamics, self.context
         if self._same_order:  # the usual case: hardware joints are the model's, in its order
-            dynamics.set_pose(context.hardware.position)
+            dynamics.set_pose(context.hardware.position, inertia=self.wants_inertia)
             self.gravity = dynamics.gravity_at_pose().tolist()
             if self.wants_inertia:
                 self.inertia = dynamics.inertia_at_pose(context.acceleration_references).tolist()
             return
         self._q[self._to_model] = context.hardware.position
-        dynamics.set_pose(self._q)
+        dynamics.set_pose(self._q, inertia=self.wants_inertia)
         self.gravity = dynamics.gravity_at_pose()[self._to_model].tolist()
         if self.wants_inertia:
             self._qdd[self._to_model] = context.acceleration_references

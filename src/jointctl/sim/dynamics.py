@@ -35,9 +35,10 @@ class RobotDynamics:
         self._direct = (np.array_equal(self.qpos_adr, np.arange(m.nq))
                         and np.array_equal(self.dof_adr, np.arange(m.nv)))
 
-    def set_pose(self, q) -> None:
+    def set_pose(self, q, *, inertia: bool = True) -> None:
         """Compute the position-dependent quantities at ``q`` (zero velocity); the
-        ``*_at_pose`` methods then answer for that pose without recomputing it."""
+        ``*_at_pose`` methods then answer for that pose without recomputing it. With
+        ``inertia=False`` M(q) is skipped: only :meth:`gravity_at_pose` may follow."""
         m, d = self.model, self.data
         if self._direct:
             d.qpos[:] = q
@@ -47,7 +48,8 @@ class RobotDynamics:
         # centre-of-mass frames and the composite inertia M(q). qvel stays zero: this data never moves.
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
-        mujoco.mj_crb(m, d)
+        if inertia:
+            mujoco.mj_crb(m, d)
 
     def gravity_at_pose(self) -> np.ndarray:
         """g(q) at the pose of the last :meth:`set_pose` (a view, valid until the next call)."""
