@@ -110,3 +110,4 @@ def test_demo_writes_a_report_with_every_experiment(tmp_path):
         assert f"## {name}" in report
         assert f"]({name}/position.png)" in report
     assert "| natural_frequency_rad_s |" in report and "| expected |" in report
+    assert "## arm7dof_streamer" not in report  # a robot to drive, not an experiment

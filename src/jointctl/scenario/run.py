@@ -54,12 +54,16 @@ def _json_ready(value: Any) -> Any:
 
 
 def run_demo(out_dir: str | Path, names: Iterable[str] | None = None) -> Path:
-    """Run every built-in scenario (or ``names``) and write ``report.md``; returns its path."""
+    """Run every built-in experiment (a scenario with an analysis), or ``names``, and write
+    ``report.md``; returns its path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     sections = []
-    for name in names or builtin_scenarios():
-        scenario = load_scenario(name)
+    scenarios = [load_scenario(name) for name in (names or builtin_scenarios())]
+    for scenario in scenarios:
+        if names is None and scenario.analysis is None:
+            continue  # a robot to drive (arm7dof_streamer), not an experiment
+        name = scenario.name
         metrics = run_scenario(scenario, out / name)
         sections.append(_report_section(scenario, metrics, out / name, out))
     report = out / "report.md"
