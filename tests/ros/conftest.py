@@ -7,6 +7,7 @@ case they fail: nothing skips silently there.
 from __future__ import annotations
 
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -84,6 +85,22 @@ def wait_for_topic(env, topic: str, timeout_s: float = 30.0) -> str:
             return result.stdout
         time.sleep(0.3)
     raise AssertionError(f"no message on {topic} within {timeout_s} s")
+
+
+def joint_position(env, topic: str = "/one_DOF_robot/joint_states") -> float:
+    """The first joint's position in the next message of ``topic``."""
+    text = wait_for_topic(env, topic)
+    return float(re.search(r"position: \[([-0-9.e]+)", text).group(1))
+
+
+def settle_to(env, target: float, timeout_s: float = 10.0, tol: float = 0.002) -> float:
+    """Poll the joint position until it is within ``tol`` of ``target``; the last position seen."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        q = joint_position(env)
+        if abs(q - target) < tol or time.monotonic() > deadline:
+            return q
+        time.sleep(0.2)
 
 
 @pytest.fixture

@@ -4,19 +4,17 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import pytest
 
-from tests.ros.conftest import run, wait_for_topic
+from tests.ros.conftest import joint_position, run, settle_to, wait_for_topic
 
 pytest.importorskip("dynamic_reconfigure.server")
 
 HERE = Path(__file__).parent
-SERVE = str(HERE / "gains_serve.py")
 CLIENT = str(HERE / "reconfigure_client.py")
 JOINT_STATES = "/one_DOF_robot/joint_states"
 POSITION_PID = "/one_DOF_robot/joint1_position_controller/pid"
@@ -25,24 +23,13 @@ DROOP = 1.01 * 9.81 / 400  # the P-only position loop's gravity droop at p = 400
 
 
 @pytest.fixture
-def serve_gains(ros_env):
-    """``jointctl serve ARGS`` with attach_gain_servers; stopped (SIGTERM) afterwards."""
-    processes = []
+def serve_gains(serve):
+    """``jointctl serve ARGS``, once joint states flow (the node attaches the gain servers itself)."""
+    return lambda *args: serve(*args, wait_topic=JOINT_STATES)
 
-    def start(*args: str):
-        process = subprocess.Popen([sys.executable, SERVE, *args], env=ros_env, stdout=subprocess.PIPE,
-                                   stderr=subprocess.STDOUT, text=True)
-        processes.append(process)
-        wait_for_topic(ros_env, JOINT_STATES)
-        return process
 
-    yield start
-    for process in processes:
-        process.terminate()
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            process.kill()
+def position(env) -> float:
+    return joint_position(env, JOINT_STATES)
 
 
 def reconfigure(env, server: str, changes: dict | None = None) -> dict:
@@ -53,21 +40,6 @@ def reconfigure(env, server: str, changes: dict | None = None) -> dict:
 def state_gains(env, topic: str = POSITION_STATE) -> dict:
     text = wait_for_topic(env, topic)
     return {k: float(re.search(rf"^{k}: (\S+)$", text, re.M).group(1)) for k in ("p", "i", "d")}
-
-
-def position(env) -> float:
-    text = wait_for_topic(env, JOINT_STATES)
-    return float(re.search(r"position: \[([-0-9.e]+)", text).group(1))
-
-
-def settle_to(env, target: float, timeout_s: float = 10.0, tol: float = 0.001) -> float:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        q = position(env)
-        if abs(q - target) < tol:
-            return q
-        time.sleep(0.2)
-    return q
 
 
 def test_the_server_starts_from_the_yaml_gains(ros_env, serve_gains):
@@ -93,7 +65,7 @@ def test_a_new_p_gain_applies_on_the_running_loop(ros_env, serve_gains):
     while state_gains(ros_env)["p"] != 800.0 and time.monotonic() < deadline:
         time.sleep(0.1)
     assert state_gains(ros_env)["p"] == 800.0
-    assert settle_to(ros_env, -0.5 - DROOP / 2) == pytest.approx(-0.5 - DROOP / 2, abs=0.001)
+    assert settle_to(ros_env, -0.5 - DROOP / 2, tol=0.001) == pytest.approx(-0.5 - DROOP / 2, abs=0.001)
     # dynamic_reconfigure mirrors the configuration on the parameter server, as rqt expects.
     assert run(ros_env, "rosparam", "get", f"{POSITION_PID}/p").stdout.strip() == "800.0"
 

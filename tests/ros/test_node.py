@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.ros.conftest import run, wait_for_topic
+from tests.ros.conftest import joint_position, run, settle_to, wait_for_topic
 
 JOINT_STATES = "/one_DOF_robot/joint_states"
 COMMAND = "/one_DOF_robot/joint1_position_controller/command"
@@ -19,18 +19,7 @@ DROOP = 1.01 * 9.81 / 400  # the P-only position loop's gravity droop [m]
 
 
 def position(env) -> float:
-    text = wait_for_topic(env, JOINT_STATES)
-    return float(re.search(r"position: \[([-0-9.e]+)", text).group(1))
-
-
-def settle_to(env, target: float, timeout_s: float = 10.0, tol: float = 0.002) -> float:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        q = position(env)
-        if abs(q - target) < tol:
-            return q
-        time.sleep(0.2)
-    return q
+    return joint_position(env, JOINT_STATES)
 
 
 def test_joint_states_commands_and_parameters(ros_env, serve):
