@@ -3,6 +3,8 @@
 #   make test   create .venv, install with test extras, run the test suite
 #   make bench  run the speed and memory benchmarks, printing ratios to a bare MuJoCo loop
 #   make ros    install Debian's ROS 1 packages and generate jointctl's message classes (make test does it)
+#   make web    build the tuning page's plotting library (uPlot, npm registry) into the package
+#   make browser  install Debian's Chromium and ChromeDriver for the page's browser tests (make test does it)
 #
 # The virtual environment is made from Debian's /usr/bin/python3 with access to its
 # system packages, so the ROS 1 packages Debian ships (rospy, actionlib) import beside
@@ -13,13 +15,20 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 OUT    ?= out/demo
 
-.PHONY: demo test bench venv ros clean
+WEB_ASSET := src/jointctl/tuning/static/vendor/uPlot.iife.min.js
+
+.PHONY: demo test bench venv ros web browser clean
 
 $(VENV)/.installed: pyproject.toml scripts/bootstrap.sh
 	PYTHON=$(PYTHON) VENV=$(VENV) bash scripts/bootstrap.sh
 	touch $@
 
-venv: $(VENV)/.installed
+$(WEB_ASSET): web/package-lock.json scripts/build_web.sh
+	bash scripts/build_web.sh
+
+web: $(WEB_ASSET)
+
+venv: $(VENV)/.installed web
 
 demo: venv
 	$(VENV)/bin/jointctl demo --out $(OUT)
@@ -31,11 +40,14 @@ ros: venv
 	bash scripts/gen_ros_msgs.sh
 	echo "$(CURDIR)/build/ros/py" > "$$($(PY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')/jointctl_ros_msgs.pth"
 
-test: ros
+browser:
+	bash scripts/install_browser.sh
+
+test: ros browser
 	$(PY) -m pytest -q
 
 bench: venv
 	$(PY) benchmarks/run.py
 
 clean:
-	rm -rf $(VENV) out build
+	rm -rf $(VENV) out build web/node_modules src/jointctl/tuning/static/vendor

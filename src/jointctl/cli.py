@@ -9,6 +9,7 @@
     jointctl prompt arm7dof --ros / play PATHFILE --ros   the same clients on a served arm (actionlib)
     jointctl sine [--namespace NS] [--joint J]      the chapter's sine commander as a ROS node
     jointctl traj-client [--seed N] [--server S]    the chapter's example trajectory action client
+    jointctl tune ROBOT --controllers NAME [--port P]  the tuning page: live plots, gains, sources
 
 Every error a user can cause is printed as one line naming the file, field
 and value, with exit status 2.
@@ -81,6 +82,19 @@ def _parser() -> argparse.ArgumentParser:
     traj.add_argument("--seed", type=int, default=7, help="seed of the irregular sample times (default 7)")
     traj.add_argument("--server", default="example_traj_action_server",
                       help="the TrajAction server (default example_traj_action_server)")
+    tune = sub.add_parser("tune", help="the tuning page: live plots, gains and command sources in the browser")
+    tune.add_argument("target", help="a built-in robot (with --controllers) or a scenario YAML / name")
+    tune.add_argument("--controllers", default="position",
+                      help="with a robot: which of its controller files to load and start (default position)")
+    tune.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                      help="override a scenario field (repeatable)")
+    tune.add_argument("--speed", type=float, default=1.0, help="loop time per wall-clock time (default 1.0)")
+    tune.add_argument("--port", type=int, default=8765, help="TCP port of the page (default 8765; 0: any free port)")
+    tune.add_argument("--host", default="127.0.0.1",
+                      help="address to listen on (default 127.0.0.1; another needs --allow-remote)")
+    tune.add_argument("--allow-remote", action="store_true",
+                      help="allow --host other than loopback: anyone reaching it can move the robot")
+    tune.add_argument("--out", type=Path, default=Path("out/tune"), help="where 'Write gains YAML' writes")
     return parser
 
 
@@ -189,8 +203,36 @@ def _traj_client(args: argparse.Namespace) -> int:
     return _ros_clients().traj_client_command(seed=args.seed, server=args.server)
 
 
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
+
+
+def _tune(args: argparse.Namespace) -> int:
+    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
+    from jointctl.tuning.server import check_static_files, serve_tuning
+    from jointctl.tuning.tuner import Tuner
+
+    if not args.speed > 0:
+        raise JointCtlError("must be positive", field="--speed", value=args.speed)
+    if not 0 <= args.port <= 65535:
+        raise JointCtlError("must be a TCP port, 0 to 65535", field="--port", value=args.port)
+    if args.host not in LOOPBACK_HOSTS:
+        if not args.allow_remote:
+            raise JointCtlError("the page moves the robot: listening beyond this machine needs --allow-remote",
+                                field="--host", value=args.host)
+        print(f"jointctl: warning: listening on {args.host}: anyone who can reach it can change gains and move "
+              "the robot (the page has no login)", file=sys.stderr)
+    check_static_files()
+    if args.target in builtin_robots():
+        scenario = scenario_for_robot(args.target, args.controllers, args.overrides)
+    else:
+        scenario = load_scenario(args.target, args.overrides)
+    tuner = Tuner(scenario, out_dir=args.out)
+    serve_tuning(tuner, host=args.host, port=args.port, speed=args.speed)
+    return 0
+
+
 _COMMANDS = {"serve": _serve, "list": _list, "run": _run, "demo": _demo, "prompt": _prompt, "play": _play,
-             "sine": _sine, "traj-client": _traj_client}
+             "sine": _sine, "traj-client": _traj_client, "tune": _tune}
 
 
 if __name__ == "__main__":

@@ -69,6 +69,12 @@ class ControlContext:
         self.acceleration_references: list[float] = [0.0] * n
         self._feedforward: ModelFeedforward | None = None
 
+    def set_gravity(self, gravity_m_s2: tuple[float, float, float]) -> None:
+        """The gravity the model feed-forward compensates [m/s², world frame], from the next cycle."""
+        self.gravity_m_s2 = tuple(float(g) for g in gravity_m_s2)
+        if self._feedforward is not None:
+            self._feedforward.dynamics.set_gravity(self.gravity_m_s2)
+
     @property
     def feedforward(self) -> ModelFeedforward:
         """The model feed-forward, built on first use (it compiles the robot's dynamics model)."""

@@ -35,6 +35,10 @@ class RobotDynamics:
         self._direct = (np.array_equal(self.qpos_adr, np.arange(m.nq))
                         and np.array_equal(self.dof_adr, np.arange(m.nv)))
 
+    def set_gravity(self, gravity_m_s2) -> None:
+        """Answer for another gravity vector [m/s², world frame] from now on."""
+        self.model.opt.gravity[:] = [float(g) for g in gravity_m_s2]
+
     def set_pose(self, q, *, inertia: bool = True) -> None:
         """Compute the position-dependent quantities at ``q`` (zero velocity); the
         ``*_at_pose`` methods then answer for that pose without recomputing it. With

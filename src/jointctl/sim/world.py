@@ -92,6 +92,33 @@ class MujocoWorld:
         for listener in self._rebuild_listeners:
             listener()
 
+    def remove_spawned(self) -> None:
+        """Take every spawned object out of the world again (MuJoCo recompiles the model);
+        the robot's state is kept. :meth:`reset` then starts over as if nothing was spawned."""
+        if not self.spawned:
+            return
+        for obj in self.spawned:
+            self.spec.delete(self.spec.body(obj.name))
+        self.model, self.data = self.spec.recompile(self.model, self.data)
+        mujoco.mj_forward(self.model, self.data)
+        self.spawned = []
+        self._resolve_addresses()
+        for listener in self._rebuild_listeners:
+            listener()
+
+    @property
+    def gravity_m_s2(self) -> tuple[float, float, float]:
+        """World-frame gravity [m/s²] (z up: Earth is (0, 0, -9.81))."""
+        return tuple(float(g) for g in self.model.opt.gravity)
+
+    def set_gravity(self, gravity_m_s2: tuple[float, float, float]) -> None:
+        """Change gravity from the next step on; kept when objects are spawned (the spec holds it too)."""
+        values = [float(g) for g in gravity_m_s2]
+        if len(values) != 3 or not all(math.isfinite(g) for g in values):
+            raise ConfigError("must be three finite numbers [m/s²]", field="gravity", value=gravity_m_s2)
+        self.model.opt.gravity[:] = values
+        self.spec.option.gravity = values
+
     def body_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """World position [m] and orientation quaternion (w, x, y, z) of body ``name``."""
         bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)

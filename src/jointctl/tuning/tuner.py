@@ -1,0 +1,280 @@
+"""A running session as the tuning page sees it: checked requests in, snapshots out.
+
+:class:`Tuner` builds the scenario's :class:`~jointctl.scenario.session.Session` and adds two
+things to its loop: a door (an input run at the start of every cycle that applies the changes
+queued since the last cycle and feeds each command source to its controller) and a
+:class:`~jointctl.tuning.live_buffer.LiveBuffer` (an observer). Requests arrive on another thread
+through :meth:`Tuner.handle`: each is checked there, completely, before anything is queued, so a
+refused request changes nothing; an accepted one is applied by the loop thread at the next
+cycle. Pausing and resetting stop the loop between cycles; :mod:`jointctl.tuning.runner` runs it.
+
+Command sources start when they are applied: a step's ``at``, a sine's phase and an expression's
+``i`` and ``t`` count from that cycle.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
+from jointctl.errors import JointCtlError
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import Scenario
+from jointctl.sim.objects import ObjectSpec, object_from_config
+from jointctl.tools.command_sources import CommandSource, command_source_from_config
+from jointctl.tuning.gains import GainGroup, gain_groups, gains_yaml
+from jointctl.tuning.live_buffer import LiveBuffer
+from jointctl.tuning.measurements import SourceRun, measure
+from jointctl.tuning.requests import Control, RequestError, SelectJoint, SetGain, SetGravity, SetSource
+
+DEFAULT_WINDOW_S = 60.0  # loop time kept for plots and measurements [s]
+
+
+@dataclasses.dataclass
+class _Feed:
+    """A command source feeding a controller since loop time ``started_s``."""
+
+    controller: Any
+    source: CommandSource
+    started_s: float
+
+
+class Tuner:
+    """The session, its doors and what the page reads."""
+
+    def __init__(self, scenario: Scenario, *, out_dir: str | Path = "out/tune", window_s: float = DEFAULT_WINDOW_S,
+                 package_path: tuple[str, ...] = ()) -> None:
+        # The tuner feeds the scenario's commands and spawns its objects itself: both start
+        # over on reset, which the session's one-shot inputs cannot.
+        self.session = Session(dataclasses.replace(scenario, commands={}, objects=()), package_path=package_path)
+        self.scenario = scenario
+        self.out_dir = Path(out_dir)
+        session = self.session
+        self.loop, self.world, self.hardware, self.manager = session.loop, session.world, session.hardware, \
+            session.manager
+        self.period_s = self.loop.period_s
+        self.groups: dict[str, GainGroup] = {g.name: g for g in gain_groups(self.manager, session.robot)}
+        self.commandable = {c.name: c for c in self.manager.active
+                            if isinstance(c, (JointPositionController, JointVelocityController))
+                            and self.manager.command_owner(c.name) is None}
+        self.buffer = LiveBuffer(self.hardware, self.manager.references, capacity=round(window_s / self.period_s))
+        tuning = scenario.robot.extras.get("tune") or {}
+        self.drop_object: ObjectSpec | None = None
+        if tuning.get("drop") is not None:
+            self.drop_object = object_from_config(tuning["drop"], field="tune.drop",
+                                                  source=str(scenario.robot.folder / "robot.yaml"),
+                                                  floor=scenario.floor)
+        self.default_joint = self._default_joint(tuning.get("joint"))
+        self._pending: deque[Callable[[float], None]] = deque()
+        self._feeds: dict[str, _Feed] = {}
+        self.runs: dict[str, SourceRun] = {}
+        self.last_commanded: str | None = None
+        self.descriptions: dict[str, dict[str, Any]] = {}
+        self._objects = sorted(scenario.objects, key=lambda o: o.spawn_at_s)
+        self._objects_pending = list(self._objects)
+        self.weight_dropped = False
+        self.paused = False
+        self.reset_wanted = False
+        self.shutdown = False
+        self.epoch = 0
+        self.loop.add_input(self._cycle_start)
+        self.loop.add_observer(self.buffer)
+        for name, config in scenario.commands.items():
+            source = command_source_from_config(config, field=f"commands.{name}", source=scenario.source)
+            self._set_source(SetSource(name, source, dict(config)))
+        self.apply_pending()
+
+    # -- what the page is told when it connects ------------------------------------------------
+    def _default_joint(self, joint: Any) -> str:
+        names = self.hardware.joint_names
+        if joint is not None:
+            if joint not in names:
+                raise JointCtlError(f"no such joint (joints: {', '.join(names)})", field="tune.joint", value=joint)
+            return joint
+        commanded = [c.joint for c in self.commandable.values()]
+        return commanded[0] if commanded else names[0]
+
+    def describe(self) -> dict[str, Any]:
+        robot = self.session.robot
+        return {
+            "robot": robot.name,
+            "scenario": self.scenario.name,
+            "period_s": self.period_s,
+            "window_s": self.buffer.capacity * self.period_s,
+            "joints": [{"name": j, "prismatic": robot.joint(j).is_prismatic} for j in self.hardware.joint_names],
+            "joint": self.default_joint,
+            "sensors": list(self.hardware.sensor_names),
+            "controllers": [{"name": c.name, "joint": c.joint, "quantity": c.controlled,
+                             "command": self._command_now(c)} for c in self.commandable.values()],
+            "gains": [g.describe() for g in self.groups.values()],
+            "can_drop": self.drop_object is not None,
+            "gravity_z_m_s2": self.world.gravity_m_s2[2],
+            "controller_file": str(self.scenario.controller_file),
+        }
+
+    def _command_now(self, controller) -> float:
+        command = controller.command
+        return float(command[0] if isinstance(command, tuple) else command)
+
+    def status(self) -> dict[str, Any]:
+        return {"time_s": self.loop.time_s, "paused": self.paused, "epoch": self.epoch,
+                "gravity_z_m_s2": self.world.gravity_m_s2[2], "weight_dropped": self.weight_dropped,
+                "sources": dict(self.descriptions), "overruns": getattr(self.loop.clock, "overruns", 0)}
+
+    def measurement(self) -> dict[str, Any]:
+        """Measurements of the most recently applied source."""
+        run = self.runs.get(self.last_commanded) if self.last_commanded else None
+        result = measure(self.buffer, run, self.loop.time_s, self.period_s)
+        result["controller"] = self.last_commanded
+        result["epoch"] = self.epoch
+        return result
+
+    def joint_index(self, joint: Any) -> int:
+        names = self.hardware.joint_names
+        if not isinstance(joint, str) or joint not in names:
+            raise RequestError(f"no such joint (joints: {', '.join(names)})", field="joint", value=joint)
+        return names.index(joint)
+
+    # -- requests (another thread) -----------------------------------------------------------------
+    def handle(self, request) -> dict[str, Any]:
+        """Check ``request`` and queue its change for the next cycle; a reply for the page.
+        Raises :class:`~jointctl.errors.JointCtlError` (nothing queued) when it is refused."""
+        if isinstance(request, SetGain):
+            group = self.groups.get(request.controller)
+            if group is None:
+                raise RequestError(f"no controller with gains of that name (tunable: {', '.join(self.groups)})",
+                                   field="controller", value=request.controller)
+            change = group.prepare(request.name, request.value)
+            self._pending.append(lambda t: change())
+            return {"type": "ok", "request": "gain", "controller": request.controller, "name": request.name,
+                    "value": float(request.value)}
+        if isinstance(request, SetSource):
+            self._set_source(request)
+            return {"type": "ok", "request": "source", "controller": request.controller,
+                    "source": request.description}
+        if isinstance(request, SelectJoint):
+            self.joint_index(request.joint)
+            return {"type": "ok", "request": "joint", "joint": request.joint}
+        if isinstance(request, SetGravity):
+            gravity = (0.0, 0.0, request.z_m_s2)
+            self._pending.append(lambda t: self._set_gravity(gravity))
+            return {"type": "ok", "request": "gravity", "value": request.z_m_s2}
+        if isinstance(request, Control):
+            return self._control(request.action)
+        raise RequestError("not a request", field="type", value=type(request).__name__)
+
+    def _set_source(self, request: SetSource) -> None:
+        controller = self.commandable.get(request.controller)
+        if controller is None:
+            raise RequestError(f"no controller takes commands by that name (commandable: "
+                               f"{', '.join(self.commandable) or 'none'})", field="controller",
+                               value=request.controller)
+        name = request.controller
+
+        def apply(t: float) -> None:
+            if request.source is None:
+                self._feeds.pop(name, None)
+            else:
+                request.source.reset()
+                self._feeds[name] = _Feed(controller, request.source, t)
+            self.runs[name] = SourceRun(controller.joint, controller.controlled, request.description, t)
+            self.descriptions[name] = request.description
+            self.last_commanded = name
+
+        self._pending.append(apply)
+
+    def _set_gravity(self, gravity: tuple[float, float, float]) -> None:
+        self.world.set_gravity(gravity)
+        self.manager.context.set_gravity(gravity)
+
+    def _control(self, action: str) -> dict[str, Any]:
+        if action == "pause":
+            self.paused = True
+        elif action == "resume":
+            self.paused = False
+        elif action == "reset":
+            self.reset_wanted = True
+        elif action == "drop_weight":
+            obj = self.drop_object
+            if obj is None:
+                raise RequestError("this robot has no weight to drop (robot.yaml: tune.drop)", field="drop_weight",
+                                   value=self.session.robot.name)
+            if self.weight_dropped:
+                raise RequestError("the weight is already in the world: reset first", field="drop_weight",
+                                   value=obj.name)
+            self.weight_dropped = True
+            self._pending.append(lambda t: self.world.spawn(obj))
+        elif action == "save_gains":
+            return self.save_gains()
+        return {"type": "ok", "request": action}
+
+    def save_gains(self) -> dict[str, Any]:
+        """Write the running gains into a copy of the controller YAML file, in the chapter's format."""
+        source = self.scenario.controller_file
+        header = (f"# {source.name} with the gains tuned by jointctl tune ({self.session.robot.name}, "
+                  f"{time.strftime('%Y-%m-%d %H:%M:%S')})\n")
+        text = gains_yaml(source, list(self.groups.values()), header)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        path = self.out_dir / source.name
+        path.write_text(text)
+        return {"type": "saved", "path": str(path.resolve()), "yaml": text}
+
+    # -- the loop side --------------------------------------------------------------------------------
+    def _cycle_start(self, time_s: float) -> None:
+        pending = self._pending
+        while pending:
+            pending.popleft()(time_s)
+        objects = self._objects_pending
+        while objects and time_s + 1e-9 >= objects[0].spawn_at_s:
+            self.world.spawn(objects.pop(0))
+        for feed in self._feeds.values():
+            feed.controller.set_command(feed.source.sample(time_s - feed.started_s))
+        if self.paused or self.reset_wanted or self.shutdown:
+            self.loop.request_stop()
+
+    def apply_pending(self) -> None:
+        """Apply queued changes while the loop is not running (paused)."""
+        pending, t = self._pending, self.loop.time_s
+        while pending:
+            pending.popleft()(t)
+
+    def reset(self) -> None:
+        """Back to the initial state, the loop stopped: physics, controllers, loop time 0, spawned
+        objects removed, every source restarted. Gains and gravity stay as set."""
+        self.apply_pending()
+        self.world.remove_spawned()
+        self.hardware.reset()
+        names = [c.name for c in self.manager.active]
+        self.manager.stop(names)
+        self.manager.start(names)
+        self.loop.cycle = 0
+        self.buffer.clear()
+        self._objects_pending = list(self._objects)
+        self.weight_dropped = False
+        for name, feed in self._feeds.items():
+            feed.source.reset()
+            feed.started_s = 0.0
+        self.runs = {name: dataclasses.replace(run, started_s=0.0) for name, run in self.runs.items()}
+        self.epoch += 1
+        self.reset_wanted = False
+
+    def close(self) -> None:
+        self.session.close()
+
+
+def stream_columns(buffer: LiveBuffer, joint: str) -> list[tuple[str, int]]:
+    """The series the page plots for ``joint``: (name, buffer column) pairs."""
+    columns = [(q, buffer.column(f"{joint}.{q}")) for q in ("command", "position", "velocity", "effort")]
+    columns += [(f"force:{s}", buffer.column(f"{s}.force_z")) for s in buffer.sensor_names]
+    return columns
+
+
+def finite_or_none(values) -> list[float | None]:
+    """JSON-ready: NaN (no controller commands the joint) becomes null."""
+    return [v if math.isfinite(v) else None for v in values]
