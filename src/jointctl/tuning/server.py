@@ -83,7 +83,9 @@ class TuningApp:
     async def _http(self, scope, send) -> None:
         path = scope["path"]
         name = "index.html" if path == "/" else path.removeprefix("/static/") if path.startswith("/static/") else None
-        if scope["method"] not in ("GET", "HEAD"):
+        if path == "/favicon.ico":
+            await self._respond(send, 204, b"", "image/x-icon")
+        elif scope["method"] not in ("GET", "HEAD"):
             await self._respond(send, 405, b"method not allowed\n", "text/plain")
         elif name not in _STATIC:  # a fixed list of files: no path from the client reaches the disk
             await self._respond(send, 404, b"not found\n", "text/plain")

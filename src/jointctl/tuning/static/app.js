@@ -8,6 +8,7 @@
   const page = {            // read by the browser tests
     connected: false, hello: null, messages: 0, dataMessages: 0, points: 0, lastTime: null,
     draws: 0, measure: null, status: null, errors: [], replies: [],
+    series: () => data,
   };
   window.jointctlPage = page;
 

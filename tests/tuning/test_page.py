@@ -1,0 +1,207 @@
+"""The tuning page in a real headless Chromium against a real ``jointctl tune`` process.
+
+Everything is done as a person would: select, type, click; the figures are read off the page.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+
+from tests.tuning.conftest import save_artifact, wait_for
+
+CONTROLLER = "joint1_position_controller"
+GAIN_P = f"gain-{CONTROLLER}-p"
+
+
+def page_state(driver, key: str):
+    return driver.execute_script(f"return window.jointctlPage.{key};")
+
+
+def open_page(driver, server) -> None:
+    driver.get(server.url)
+    wait_for(lambda: page_state(driver, "hello"), what="the page's hello")
+
+
+def choose(driver, select_id: str, value: str) -> None:
+    from selenium.webdriver.support.ui import Select
+
+    Select(driver.find_element("id", select_id)).select_by_value(value)
+
+
+def type_into(driver, element_id: str, text: str, enter: bool = False) -> None:
+    from selenium.webdriver.common.keys import Keys
+
+    field = driver.find_element("id", element_id)
+    field.click()
+    field.send_keys(Keys.CONTROL, "a")  # select all and type over it, as a person does
+    field.send_keys(text + (Keys.ENTER if enter else ""))
+
+
+def replies(driver) -> int:
+    return driver.execute_script("return window.jointctlPage.replies.length + window.jointctlPage.errors.length;")
+
+
+def click_and_wait(driver, element_id: str) -> dict:
+    """Click and return the server's reply (ok, saved or error)."""
+    before = replies(driver)
+    driver.find_element("id", element_id).click()
+    wait_for(lambda: replies(driver) > before, what=f"the reply to {element_id}")
+    return driver.execute_script(
+        "const p = window.jointctlPage; const all = p.replies.concat(p.errors);"
+        "return [p.replies.length ? p.replies[p.replies.length-1] : null, p.errors.length ? p.errors[p.errors.length-1] : null];")
+
+
+def last_error(driver) -> dict | None:
+    errors = page_state(driver, "errors")
+    return errors[-1] if errors else None
+
+
+def error_banner(driver) -> str:
+    banner = driver.find_element("id", "error")
+    return banner.text if banner.is_displayed() else ""
+
+
+def apply_step(driver) -> float:
+    """Apply the step source (-0.5 m to -0.3 m, 1 s after applying); wait for its final measurement."""
+    choose(driver, "source-type", "step")
+    type_into(driver, "step-from", "-0.5")
+    type_into(driver, "step-to", "-0.3")
+    type_into(driver, "step-at", "1.0")
+    errors = len(page_state(driver, "errors"))
+    driver.find_element("id", "source-apply").click()
+    applied_at = wait_for(lambda: (page_state(driver, "status") or {}).get("time_s"), what="status")
+
+    def final():
+        m = page_state(driver, "measure")
+        if m and m["kind"] == "step" and m["complete"] and m["step_time_s"] > applied_at:
+            return m
+        return None
+
+    wait_for(final, timeout_s=15, what="a complete step measurement")
+    assert len(page_state(driver, "errors")) == errors
+    cell = driver.find_element("id", "measure-oscillation_frequency_hz")
+    assert cell.text.endswith("Hz")
+    return float(cell.get_attribute("data-value"))
+
+
+def test_page_loads_and_the_plot_advances_at_30_updates_per_second(browser, tune):
+    server = tune("one_dof", "--controllers", "position")
+    open_page(browser, server)
+    assert browser.title == "jointctl tune"
+    assert "one_DOF_robot" in browser.find_element("id", "robot").text
+    assert browser.find_element("id", GAIN_P).get_attribute("value") == "400"
+    wait_for(lambda: (page_state(browser, "lastTime") or 0) > 0.5, what="data on the plot")
+    draws0, time0, wall0 = page_state(browser, "draws"), page_state(browser, "lastTime"), time.monotonic()
+    time.sleep(3.0)
+    draws1, time1, wall1 = page_state(browser, "draws"), page_state(browser, "lastTime"), time.monotonic()
+    rate = (draws1 - draws0) / (wall1 - wall0)
+    assert rate >= 30, f"the plot redrew {rate:.1f} times per second"
+    # Paced to the wall clock at speed 1: loop time advances as fast as the wall clock.
+    assert (time1 - time0) / (wall1 - wall0) == pytest.approx(1.0, abs=0.15)
+    # No gaps: every sample of the window arrived, one per 4 ms of loop time (250 samples/s).
+    gaps = browser.execute_script(
+        "const t = window.jointctlPage.series().t; let g = 0;"
+        "for (let k = 1; k < t.length; k++) g = Math.max(g, t[k] - t[k-1]); return [g, t.length];")
+    assert gaps[0] == pytest.approx(0.004, abs=1e-6), gaps
+    # The uPlot charts are drawn on canvases.
+    assert len(browser.find_elements("css selector", "#plot-position canvas")) >= 1
+
+
+def test_raising_kp_from_400_to_1600_doubles_the_measured_oscillation_frequency(browser, tune):
+    server = tune("one_dof", "--controllers", "position")
+    open_page(browser, server)
+    f400 = apply_step(browser)
+    type_into(browser, GAIN_P, "1600", enter=True)
+    wait_for(lambda: any(r.get("request") == "gain" and r.get("value") == 1600 for r in page_state(browser, "replies")),
+             what="the gain's ok")
+    assert server.hello()["gains"][0]["gains"][0]["value"] == 1600  # the loop's controller has it
+    f1600 = apply_step(browser)
+    save_artifact(browser, "tuning_page_kp1600_step.png")
+    # Kp x4 doubles the natural frequency; with the joint's damping fixed the damped frequency
+    # rises by 2 * sqrt(1 - zeta1600^2) / sqrt(1 - zeta400^2) = 2.048 (zeta 0.248 -> 0.124).
+    assert f1600 / f400 == pytest.approx(2.0, rel=0.05)
+    wn = [float(browser.find_element("id", "measure-natural_frequency_rad_s").get_attribute("data-value"))]
+    assert wn[0] == pytest.approx(2 * math.sqrt(400 / 1.01), rel=0.03)
+
+
+def test_hostile_and_malformed_input_is_refused_on_the_page_and_nothing_changes(browser, tune):
+    server = tune("one_dof", "--controllers", "position")
+    open_page(browser, server)
+    choose(browser, "source-type", "constant")
+    type_into(browser, "constant-value", "-0.4")
+    click_and_wait(browser, "source-apply")
+    before = server.hello()
+
+    choose(browser, "source-type", "expression")
+    for text, expected in (("__import__('os')", "unknown function '__import__'"),
+                           ("().__class__", "attribute access is not allowed"),
+                           ("0.1*sin(i/5", "source.expression")):
+        type_into(browser, "expression-text", text)
+        _, error = click_and_wait(browser, "source-apply")
+        assert expected in error["message"]
+        assert expected in error_banner(browser)
+    # A 10 MB expression (pasted): refused by its length, the page stays connected.
+    browser.execute_script("document.getElementById('expression-text').value = 'x'.repeat(10 * 1000 * 1000);")
+    _, error = click_and_wait(browser, "source-apply")
+    assert "too long (10000000 characters" in error["message"]
+    assert page_state(browser, "connected")
+
+    # A negative and a non-numeric gain: refused, the input shows the running value again.
+    for text, expected in (("-5", "must not be below 0 (got -5)"), ("fast", "must be a number (got 'fast')")):
+        type_into(browser, GAIN_P, text)
+        _, error = click_and_wait(browser, "gravity")  # leaving the field submits it
+        assert error["field"] == f"{CONTROLLER}.p" and expected in error["message"]
+        assert browser.find_element("id", GAIN_P).get_attribute("value") == "400"
+
+    # An unknown joint (a forged option): refused, the plot goes back to joint1.
+    browser.execute_script(
+        "const s = document.getElementById('joint'); const o = document.createElement('option');"
+        "o.value = o.textContent = 'joint9'; s.appendChild(o); s.value = 'joint9';"
+        "s.dispatchEvent(new Event('change'));")
+    wait_for(lambda: (last_error(browser) or {}).get("request") == "joint", what="the joint's refusal")
+    assert "no such joint" in last_error(browser)["message"]
+    wait_for(lambda: browser.find_element("id", "joint").get_attribute("value") == "joint1", what="joint1 again")
+
+    after = server.hello()
+    assert after["gains"] == before["gains"]
+    assert after["controllers"][0]["command"] == pytest.approx(-0.4)
+    status = page_state(browser, "status")
+    assert status["sources"][CONTROLLER] == {"type": "constant", "value": -0.4}
+    save_artifact(browser, "tuning_page_refused_input.png")
+
+
+def test_controls_pause_resume_reset_gravity_and_drop_weight(browser, tune):
+    server = tune("one_dof", "--controllers", "position")
+    open_page(browser, server)
+    wait_for(lambda: (page_state(browser, "lastTime") or 0) > 0.3, what="data")
+    click_and_wait(browser, "pause")
+    wait_for(lambda: page_state(browser, "status")["paused"], what="paused")
+    frozen = page_state(browser, "status")["time_s"]
+    time.sleep(0.6)
+    assert page_state(browser, "status")["time_s"] == frozen
+    click_and_wait(browser, "resume")
+    wait_for(lambda: page_state(browser, "status")["time_s"] > frozen + 0.3, what="time to go on")
+
+    click_and_wait(browser, "gravity-off")
+    wait_for(lambda: page_state(browser, "status")["gravity_z_m_s2"] == 0.0, what="gravity off")
+    click_and_wait(browser, "gravity-earth")
+
+    assert browser.find_element("id", "drop").is_displayed()
+    click_and_wait(browser, "drop")
+    wait_for(lambda: page_state(browser, "status")["weight_dropped"], what="the weight")
+    _, error = click_and_wait(browser, "drop")
+    assert "already in the world" in error["message"]
+
+    time_before = page_state(browser, "status")["time_s"]
+    click_and_wait(browser, "reset")
+    wait_for(lambda: page_state(browser, "status")["time_s"] < time_before and
+             not page_state(browser, "status")["weight_dropped"], what="the reset")
+    assert page_state(browser, "status")["epoch"] == 1
+
+    reply, _ = click_and_wait(browser, "save-gains")
+    assert reply["path"].endswith("one_dof_pos_ctl_params.yaml")
+    assert "pid: {p: 400.0, i: 0.0, d: 0.0}" in reply["yaml"]
+    assert "download" in browser.find_element("id", "saved").text
