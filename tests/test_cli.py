@@ -111,3 +111,25 @@ def test_demo_writes_a_report_with_every_experiment(tmp_path):
         assert f"]({name}/position.png)" in report
     assert "| natural_frequency_rad_s |" in report and "| expected |" in report
     assert "## arm7dof_streamer" not in report  # a robot to drive, not an experiment
+
+
+@pytest.mark.parametrize("args, fragments", [
+    (["--host", "0.0.0.0"], ["--host", "needs --allow-remote", "0.0.0.0"]),
+    (["--port", "70000"], ["--port", "0 to 65535"]),
+    (["--speed", "0"], ["--speed", "must be positive"]),
+    (["--controllers", "fast"], ["--controllers", "fast"]),
+])
+def test_tune_refuses_bad_options_in_one_line(args, fragments):
+    assert_one_line_error(jointctl("tune", "one_dof", *args), *fragments)
+
+
+def test_tune_warns_when_listening_beyond_loopback(tmp_path):
+    process = subprocess.Popen([*JOINTCTL, "tune", "one_dof", "--host", "0.0.0.0", "--allow-remote", "--port", "0",
+                                "--out", str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = process.stdout.readline()
+        assert line.startswith("jointctl: tuning one_DOF_robot at http://0.0.0.0:")
+    finally:
+        process.terminate()
+        _, err = process.communicate(timeout=10)
+    assert "warning: listening on 0.0.0.0: anyone who can reach it can change gains and move the robot" in err

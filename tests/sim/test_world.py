@@ -187,3 +187,28 @@ def test_model_mujoco_refuses_becomes_model_error() -> None:
         MujocoWorld(parse_urdf(massless, source="massless.urdf"))
     assert info.value.source == "massless.urdf"
     assert "MuJoCo" in str(info.value)
+
+
+def test_gravity_can_change_and_survives_a_spawn_and_spawned_objects_can_be_removed():
+    from jointctl.sim.objects import ObjectSpec
+
+    robot = load_robot_model(ONE_DOF_XACRO)
+    world = MujocoWorld(robot, initial_positions={"joint1": -0.5})
+    world.set_gravity((0.0, 0.0, -5.0))
+    assert world.gravity_m_s2 == (0.0, 0.0, -5.0)
+    weight = ObjectSpec("weight", "sphere", (0.05,), 1.0, (0.0, 0.0, 2.0))
+    world.spawn(weight)
+    assert world.gravity_m_s2 == (0.0, 0.0, -5.0)  # the recompiled model keeps it
+    for _ in range(100):
+        world.step()
+    position, _ = world.body_pose("weight")
+    assert position[2] == pytest.approx(2.0 - 0.5 * 5.0 * 0.1 ** 2, abs=2e-3)  # falls at 5 m/s²
+    rebuilt = []
+    world.on_rebuild(lambda: rebuilt.append(True))
+    world.remove_spawned()
+    assert not world.has_body("weight") and world.spawned == [] and rebuilt == [True]
+    world.reset()
+    assert world.data.qpos[world.qpos_adr[0]] == pytest.approx(-0.5)
+    world.spawn(weight)  # the same name may come again
+    with pytest.raises(ConfigError, match="three finite numbers"):
+        world.set_gravity((0.0, 0.0, float("nan")))
