@@ -124,4 +124,13 @@ def save_artifact(driver, name: str) -> Path:
     return path
 
 
-__all__ = ["TuneProcess", "save_artifact", "wait_for"]
+def record_metrics(**figures) -> None:
+    """Merge measured figures into out/test-artifacts/tuning_page_metrics.json."""
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    path = ARTIFACTS / "tuning_page_metrics.json"
+    metrics = json.loads(path.read_text()) if path.is_file() else {}
+    metrics.update(figures)
+    path.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+
+
+__all__ = ["TuneProcess", "record_metrics", "save_artifact", "wait_for"]

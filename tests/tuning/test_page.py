@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from tests.tuning.conftest import save_artifact, wait_for
+from tests.tuning.conftest import record_metrics, save_artifact, wait_for
 
 CONTROLLER = "joint1_position_controller"
 GAIN_P = f"gain-{CONTROLLER}-p"
@@ -98,9 +98,11 @@ def test_page_loads_and_the_plot_advances_at_30_updates_per_second(browser, tune
     time.sleep(3.0)
     draws1, time1, wall1 = page_state(browser, "draws"), page_state(browser, "lastTime"), time.monotonic()
     rate = (draws1 - draws0) / (wall1 - wall0)
+    pace = (time1 - time0) / (wall1 - wall0)
+    record_metrics(plot_redraws_per_s=rate, loop_time_per_wall_time=pace)
     assert rate >= 30, f"the plot redrew {rate:.1f} times per second"
     # Paced to the wall clock at speed 1: loop time advances as fast as the wall clock.
-    assert (time1 - time0) / (wall1 - wall0) == pytest.approx(1.0, abs=0.15)
+    assert pace == pytest.approx(1.0, abs=0.15)
     # No gaps: every sample of the window arrived, one per 4 ms of loop time (250 samples/s).
     gaps = browser.execute_script(
         "const t = window.jointctlPage.series().t; let g = 0;"
@@ -120,6 +122,8 @@ def test_raising_kp_from_400_to_1600_doubles_the_measured_oscillation_frequency(
     assert server.hello()["gains"][0]["gains"][0]["value"] == 1600  # the loop's controller has it
     f1600 = apply_step(browser)
     save_artifact(browser, "tuning_page_kp1600_step.png")
+    record_metrics(oscillation_frequency_hz_kp400=f400, oscillation_frequency_hz_kp1600=f1600,
+                   frequency_ratio=f1600 / f400)
     # Kp x4 doubles the natural frequency; with the joint's damping fixed the damped frequency
     # rises by 2 * sqrt(1 - zeta1600^2) / sqrt(1 - zeta400^2) = 2.048 (zeta 0.248 -> 0.124).
     assert f1600 / f400 == pytest.approx(2.0, rel=0.05)

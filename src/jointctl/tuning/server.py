@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import math
 import socket
 import sys
 from importlib import resources
@@ -29,7 +30,7 @@ from jointctl.tuning.requests import MAX_REQUEST_CHARS, SelectJoint, parse_reque
 from jointctl.tuning.runner import LiveRunner
 from jointctl.tuning.tuner import Tuner, finite_or_none, stream_columns
 
-STREAM_HZ = 40.0  # data messages per second
+STREAM_HZ = 60.0  # data messages per second (the page redraws on each: a screen's rate)
 DISPLAY_HZ = 250.0  # plotted samples per second of loop time
 STATUS_HZ = 4.0
 MEASURE_HZ = 2.0
@@ -147,7 +148,10 @@ class _Connection:
         self.cursor = self.tuner.buffer.readable_from()
 
     async def send(self, message: dict[str, Any]) -> None:
-        text = json.dumps(message, allow_nan=False)
+        try:
+            text = json.dumps(message, allow_nan=False)
+        except ValueError:  # a NaN or infinity somewhere: JSON has none, the page shows null
+            text = json.dumps(_finite(message), allow_nan=False)
         async with self._lock:
             await self._send({"type": "websocket.send", "text": text})
 
@@ -172,8 +176,12 @@ class _Connection:
         per_status = max(1, round(STREAM_HZ / STATUS_HZ))
         per_measure = max(1, round(STREAM_HZ / MEASURE_HZ))
         measured_key = None
+        clock = asyncio.get_running_loop().time
+        due = clock()
         while True:
-            await asyncio.sleep(1.0 / STREAM_HZ)
+            # On a fixed schedule (late ticks are not made up): the rate does not drop by the work done.
+            due = max(due + 1.0 / STREAM_HZ, clock())
+            await asyncio.sleep(due - clock())
             await self._data()
             if tick % per_status == 0:
                 status = tuner.status()
@@ -206,6 +214,16 @@ class _Connection:
         series = {name: finite_or_none(rows[:, k + 1].tolist()) for k, (name, _) in enumerate(columns)}
         await self.send({"type": "data", "epoch": self.epoch, "joint": self.joint, "t": rows[:, 0].tolist(),
                          "series": series})
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    return value
 
 
 def bind(host: str, port: int) -> socket.socket:
