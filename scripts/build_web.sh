@@ -6,14 +6,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 VENDOR=src/jointctl/tuning/static/vendor
-as_root() {
-  if [ "$(id -u)" = 0 ]; then "$@"; elif command -v sudo >/dev/null; then sudo "$@"; else
-    echo "build_web: need root to run: $*" >&2; return 1; fi
-}
 if ! command -v npm >/dev/null; then
-  echo "build_web: installing Debian's nodejs and npm"
-  as_root apt-get update -q
-  DEBIAN_FRONTEND=noninteractive as_root apt-get install -y -q --no-install-recommends nodejs npm
+  source scripts/apt_packages.sh
+  install_missing build_web nodejs npm
 fi
 npm ci --prefix web --no-audit --no-fund --loglevel=error
 mkdir -p "$VENDOR"

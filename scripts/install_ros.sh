@@ -12,17 +12,5 @@ PACKAGES=(
   ros-std-msgs ros-actionlib-msgs ros-geometry-msgs ros-sensor-msgs ros-trajectory-msgs
   python3-dynamic-reconfigure
 )
-missing=()
-for p in "${PACKAGES[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -eq 0 ]; then
-  exit 0
-fi
-as_root() {
-  if [ "$(id -u)" = 0 ]; then "$@"; elif command -v sudo >/dev/null; then sudo "$@"; else
-    echo "install_ros: need root to run: $*" >&2; return 1; fi
-}
-echo "install_ros: installing ${#missing[@]} Debian packages: ${missing[*]}"
-as_root apt-get update -q
-DEBIAN_FRONTEND=noninteractive as_root apt-get install -y -q --no-install-recommends "${missing[@]}"
+source "$(dirname "$0")/apt_packages.sh"
+install_missing install_ros "${PACKAGES[@]}"

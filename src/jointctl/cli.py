@@ -48,13 +48,8 @@ def _parser() -> argparse.ArgumentParser:
                      help="folder searched for $(find pkg) and package:// (repeatable)")
 
     serve = sub.add_parser("serve", help="run a robot or a scenario as a ROS 1 node (chapter topic names)")
-    serve.add_argument("target", help="a built-in robot (with --controllers) or a scenario YAML / name")
-    serve.add_argument("--controllers", default="position",
-                       help="with a robot: which of its controller files to load and start (default position)")
-    serve.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                       help="override a scenario field (repeatable)")
+    _live_target_arguments(serve)
     serve.add_argument("--sim-time", action="store_true", help="publish /clock with loop time, use_sim_time")
-    serve.add_argument("--speed", type=float, default=1.0, help="loop time per wall-clock time (default 1.0)")
 
     demo = sub.add_parser("demo", help="run every built-in experiment and write report.md")
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder")
@@ -83,12 +78,7 @@ def _parser() -> argparse.ArgumentParser:
     traj.add_argument("--server", default="example_traj_action_server",
                       help="the TrajAction server (default example_traj_action_server)")
     tune = sub.add_parser("tune", help="the tuning page: live plots, gains and command sources in the browser")
-    tune.add_argument("target", help="a built-in robot (with --controllers) or a scenario YAML / name")
-    tune.add_argument("--controllers", default="position",
-                      help="with a robot: which of its controller files to load and start (default position)")
-    tune.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                      help="override a scenario field (repeatable)")
-    tune.add_argument("--speed", type=float, default=1.0, help="loop time per wall-clock time (default 1.0)")
+    _live_target_arguments(tune)
     tune.add_argument("--port", type=int, default=8765, help="TCP port of the page (default 8765; 0: any free port)")
     tune.add_argument("--host", default="127.0.0.1",
                       help="address to listen on (default 127.0.0.1; another needs --allow-remote)")
@@ -96,6 +86,27 @@ def _parser() -> argparse.ArgumentParser:
                       help="allow --host other than loopback: anyone reaching it can move the robot")
     tune.add_argument("--out", type=Path, default=Path("out/tune"), help="where 'Write gains YAML' writes")
     return parser
+
+
+def _live_target_arguments(parser: argparse.ArgumentParser) -> None:
+    """What serve and tune share: a robot and its controller file, or a scenario, run on the wall clock."""
+    parser.add_argument("target", help="a built-in robot (with --controllers) or a scenario YAML / name")
+    parser.add_argument("--controllers", default="position",
+                        help="with a robot: which of its controller files to load and start (default position)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a scenario field (repeatable)")
+    parser.add_argument("--speed", type=float, default=1.0, help="loop time per wall-clock time (default 1.0)")
+
+
+def _live_scenario(args: argparse.Namespace):
+    """The scenario of ``serve``/``tune``: a built-in robot with a controller file, or a scenario."""
+    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
+
+    if not args.speed > 0:
+        raise JointCtlError("must be positive", field="--speed", value=args.speed)
+    if args.target in builtin_robots():
+        return scenario_for_robot(args.target, args.controllers, args.overrides)
+    return load_scenario(args.target, args.overrides)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -141,18 +152,12 @@ def _run(args: argparse.Namespace) -> int:
 
 def _serve(args: argparse.Namespace) -> int:
     from jointctl.scenario.session import Session
-    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
 
-    if not args.speed > 0:
-        raise JointCtlError("must be positive", field="--speed", value=args.speed)
+    scenario = _live_scenario(args)
     try:
         from jointctl.ros.node import check_actions, serve
     except ImportError as exc:
         raise JointCtlError(f"ROS 1 is not available ({exc}); install it with 'make ros'") from None
-    if args.target in builtin_robots():
-        scenario = scenario_for_robot(args.target, args.controllers, args.overrides)
-    else:
-        scenario = load_scenario(args.target, args.overrides)
     session = Session(scenario)
     started = {c.name for c in session.manager.active}
     actions = {name: spec for name, spec in check_actions(
@@ -207,12 +212,9 @@ LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 
 
 def _tune(args: argparse.Namespace) -> int:
-    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
     from jointctl.tuning.server import check_static_files, serve_tuning
     from jointctl.tuning.tuner import Tuner
 
-    if not args.speed > 0:
-        raise JointCtlError("must be positive", field="--speed", value=args.speed)
     if not 0 <= args.port <= 65535:
         raise JointCtlError("must be a TCP port, 0 to 65535", field="--port", value=args.port)
     if args.host not in LOOPBACK_HOSTS:
@@ -222,11 +224,7 @@ def _tune(args: argparse.Namespace) -> int:
         print(f"jointctl: warning: listening on {args.host}: anyone who can reach it can change gains and move "
               "the robot (the page has no login)", file=sys.stderr)
     check_static_files()
-    if args.target in builtin_robots():
-        scenario = scenario_for_robot(args.target, args.controllers, args.overrides)
-    else:
-        scenario = load_scenario(args.target, args.overrides)
-    tuner = Tuner(scenario, out_dir=args.out)
+    tuner = Tuner(_live_scenario(args), out_dir=args.out)
     serve_tuning(tuner, host=args.host, port=args.port, speed=args.speed)
     return 0
 

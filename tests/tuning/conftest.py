@@ -65,12 +65,17 @@ class TuneProcess:
 
     def __init__(self, args: list[str], out_dir: Path) -> None:
         command = [sys.executable, "-m", "jointctl.cli", "tune", *args, "--port", "0", "--out", str(out_dir)]
-        self.process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        # stderr to a file: a pipe nobody reads would block the server once it filled up.
+        self.stderr_path = out_dir / f"tune-stderr-{time.monotonic_ns()}.txt"
+        self._stderr = self.stderr_path.open("w")
+        self.process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=self._stderr, text=True)
         line = self.process.stdout.readline()
         match = re.search(r"(http://\S+/)", line)
         if not match:
             self.process.kill()
-            raise RuntimeError(f"jointctl tune did not start: {line}{self.process.stderr.read()}")
+            self.process.wait()
+            raise RuntimeError(f"jointctl tune did not start: {line}{self.stderr_path.read_text()}")
         self.url = match.group(1)
         self.ws_url = self.url.replace("http://", "ws://") + "ws"
 
@@ -82,13 +87,17 @@ class TuneProcess:
             return json.loads(ws.recv())
 
     def stop(self) -> tuple[int, str]:
-        self.process.terminate()
-        try:
-            _, err = self.process.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            _, err = self.process.communicate()
-        return self.process.returncode, err
+        """Stop it as Ctrl-C or a service manager would (SIGTERM); (exit status, its stderr)."""
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+        self.process.stdout.close()
+        self._stderr.close()
+        return self.process.returncode, self.stderr_path.read_text()
 
 
 @pytest.fixture

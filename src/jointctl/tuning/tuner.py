@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
-from jointctl.errors import JointCtlError
+from jointctl.errors import ConfigError, JointCtlError
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.objects import ObjectSpec, object_from_config
@@ -70,7 +70,11 @@ class Tuner:
             self.drop_object = object_from_config(tuning["drop"], field="tune.drop",
                                                   source=str(scenario.robot.folder / "robot.yaml"),
                                                   floor=scenario.floor)
-        self.default_joint = self._default_joint(tuning.get("joint"))
+        for k, obj in enumerate((*scenario.objects, *([self.drop_object] if self.drop_object else []))):
+            if self.world.has_body(obj.name):
+                raise ConfigError("a link of the robot already has that name", source=scenario.source,
+                                  field=f"objects[{k}].name", value=obj.name)
+        self.default_joint = self._default_joint(tuning.get("joint"), str(scenario.robot.folder / "robot.yaml"))
         self._pending: deque[Callable[[float], None]] = deque()
         self._feeds: dict[str, _Feed] = {}
         self.runs: dict[str, SourceRun] = {}
@@ -91,11 +95,12 @@ class Tuner:
         self.apply_pending()
 
     # -- what the page is told when it connects ------------------------------------------------
-    def _default_joint(self, joint: Any) -> str:
+    def _default_joint(self, joint: Any, source: str) -> str:
         names = self.hardware.joint_names
         if joint is not None:
             if joint not in names:
-                raise JointCtlError(f"no such joint (joints: {', '.join(names)})", field="tune.joint", value=joint)
+                raise ConfigError(f"no such joint (joints: {', '.join(names)})", source=source, field="tune.joint",
+                                  value=joint)
             return joint
         commanded = [c.joint for c in self.commandable.values()]
         return commanded[0] if commanded else names[0]
