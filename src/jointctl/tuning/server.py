@@ -193,7 +193,11 @@ class _Connection:
                 key = (tuner.epoch, tuner.last_commanded,
                        tuner.runs[tuner.last_commanded].started_s if tuner.last_commanded else None)
                 if key != measured_key:
-                    result = await asyncio.to_thread(tuner.measurement)
+                    try:
+                        result = await asyncio.to_thread(tuner.measurement)
+                    except Exception as exc:  # noqa: BLE001  (the page keeps streaming and says why)
+                        result = {"kind": None, "complete": False, "values": {},
+                                  "note": f"measurement failed: {type(exc).__name__}: {exc}"}
                     if result.get("complete"):
                         measured_key = key  # nothing more to learn from this run
                     await self.send({"type": "measure", **result})
