@@ -76,7 +76,7 @@ class Session:
         for name, source in self.sources.items():
             self.loop.add_input(_feed(source, self.manager.controller(name)))
         if scenario.objects:
-            self.loop.add_input(_spawner(self.world, scenario.objects))
+            self.loop.add_input(object_spawner(self.world, scenario.objects))
         #: Handles of the scenario's trajectory goals, in the order they were sent.
         self.goals: list = []
         if scenario.goals:
@@ -118,7 +118,7 @@ class Session:
         self.close()
 
 
-def _spawner(world: MujocoWorld, objects):
+def object_spawner(world: MujocoWorld, objects):
     """A loop input that adds each object to the world once loop time reaches its spawn time."""
     pending = sorted(objects, key=lambda o: o.spawn_at_s)
 

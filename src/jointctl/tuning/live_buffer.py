@@ -28,13 +28,11 @@ class LiveBuffer:
         self._references = references
         self.joint_names = tuple(hardware.joint_names)
         self.sensor_names = tuple(hardware.sensor_names)
-        n = len(self.joint_names)
         self.columns = ("time",) + tuple(f"{j}.{q}" for q in QUANTITIES for j in self.joint_names) + tuple(
             f"{s}.force_z" for s in self.sensor_names)
         self.capacity = capacity
         self.data = np.zeros((capacity, len(self.columns)))
         self.count = 0
-        self._n = n
 
     def clear(self) -> None:
         """Forget every row (the loop is not running)."""

@@ -20,7 +20,7 @@ import json
 import math
 import numbers
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from jointctl.errors import JointCtlError
 from jointctl.tools.command_sources import CommandSource, command_source_from_config
@@ -40,6 +40,7 @@ class RequestError(JointCtlError):
 
 @dataclass(frozen=True)
 class SetGain:
+    kind: ClassVar[str] = "gain"  # the request's "type"
     controller: str
     name: str
     value: Any  # checked against the gain's bounds by the gain group
@@ -47,6 +48,7 @@ class SetGain:
 
 @dataclass(frozen=True)
 class SetSource:
+    kind: ClassVar[str] = "source"  # the request's "type"
     controller: str
     source: CommandSource | None  # None: stop commanding, the controller holds its last command
     description: dict[str, Any]
@@ -54,17 +56,23 @@ class SetSource:
 
 @dataclass(frozen=True)
 class SelectJoint:
+    kind: ClassVar[str] = "joint"  # the request's "type"
     joint: str
 
 
 @dataclass(frozen=True)
 class SetGravity:
+    kind: ClassVar[str] = "gravity"  # the request's "type"
     z_m_s2: float
 
 
 @dataclass(frozen=True)
 class Control:
     action: str
+
+    @property
+    def kind(self) -> str:
+        return self.action
 
 
 Request = SetGain | SetSource | SelectJoint | SetGravity | Control

@@ -28,12 +28,10 @@ class LiveRunner:
         self.speed = speed
         self.error: BaseException | None = None
         self._thread = threading.Thread(target=self._main, name="jointctl-tune-loop", daemon=True)
-        self._started_wall = 0.0
         self._previous_switch = sys.getswitchinterval()
 
     def start(self) -> None:
         sys.setswitchinterval(SWITCH_INTERVAL_S)
-        self._started_wall = time.perf_counter()
         self._thread.start()
 
     def stop(self, timeout_s: float = 5.0) -> None:

@@ -28,7 +28,7 @@ from typing import Any
 from jointctl.errors import JointCtlError
 from jointctl.tuning.requests import MAX_REQUEST_CHARS, SelectJoint, parse_request
 from jointctl.tuning.runner import LiveRunner
-from jointctl.tuning.tuner import Tuner, finite_or_none, stream_columns
+from jointctl.tuning.tuner import Tuner, stream_columns
 
 STREAM_HZ = 60.0  # data messages per second (the page redraws on each: a screen's rate)
 DISPLAY_HZ = 250.0  # plotted samples per second of loop time
@@ -42,7 +42,6 @@ _STATIC = {
     "vendor/uPlot.iife.min.js": "text/javascript; charset=utf-8",
     "vendor/uPlot.min.css": "text/css; charset=utf-8",
 }
-_KINDS = {"SetGain": "gain", "SetSource": "source", "SelectJoint": "joint", "SetGravity": "gravity"}
 _HEADERS = [
     (b"cache-control", b"no-store"),
     (b"x-content-type-options", b"nosniff"),
@@ -159,7 +158,7 @@ class _Connection:
         kind = None
         try:
             request = parse_request(text)
-            kind = _KINDS.get(type(request).__name__, getattr(request, "action", None))
+            kind = request.kind
             reply = self.tuner.handle(request)
             if isinstance(request, SelectJoint):
                 self.joint = request.joint
@@ -215,12 +214,13 @@ class _Connection:
         self.cursor = stop
         if not len(rows):
             return
-        series = {name: finite_or_none(rows[:, k + 1].tolist()) for k, (name, _) in enumerate(columns)}
+        series = {name: _finite(rows[:, k + 1].tolist()) for k, (name, _) in enumerate(columns)}
         await self.send({"type": "data", "epoch": self.epoch, "joint": self.joint, "t": rows[:, 0].tolist(),
                          "series": series})
 
 
 def _finite(value: Any) -> Any:
+    """JSON-ready: NaN and infinities (a joint no controller commands has a NaN reference) become null."""
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):

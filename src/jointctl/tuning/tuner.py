@@ -15,7 +15,6 @@ Command sources start when they are applied: a step's ``at``, a sine's phase and
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from collections import deque
 from collections.abc import Callable
@@ -24,7 +23,7 @@ from typing import Any
 
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
 from jointctl.errors import ConfigError, JointCtlError
-from jointctl.scenario.session import Session
+from jointctl.scenario.session import Session, object_spawner
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.objects import ObjectSpec, object_from_config
 from jointctl.tools.command_sources import CommandSource, command_source_from_config
@@ -79,9 +78,7 @@ class Tuner:
         self._feeds: dict[str, _Feed] = {}
         self.runs: dict[str, SourceRun] = {}
         self.last_commanded: str | None = None
-        self.descriptions: dict[str, dict[str, Any]] = {}
-        self._objects = sorted(scenario.objects, key=lambda o: o.spawn_at_s)
-        self._objects_pending = list(self._objects)
+        self._spawn_objects = object_spawner(self.world, scenario.objects)  # replaced on reset: they come again
         self.weight_dropped = False
         self.paused = False
         self.reset_wanted = False
@@ -130,7 +127,7 @@ class Tuner:
     def status(self) -> dict[str, Any]:
         return {"time_s": self.loop.time_s, "paused": self.paused, "epoch": self.epoch,
                 "gravity_z_m_s2": self.world.gravity_m_s2[2], "weight_dropped": self.weight_dropped,
-                "sources": dict(self.descriptions), "overruns": getattr(self.loop.clock, "overruns", 0)}
+                "sources": {name: run.description for name, run in self.runs.items()}, "overruns": getattr(self.loop.clock, "overruns", 0)}
 
     def measurement(self) -> dict[str, Any]:
         """Measurements of the most recently applied source."""
@@ -189,7 +186,6 @@ class Tuner:
                 request.source.reset()
                 self._feeds[name] = _Feed(controller, request.source, t)
             self.runs[name] = SourceRun(controller.joint, controller.controlled, request.description, t)
-            self.descriptions[name] = request.description
             self.last_commanded = name
 
         self._pending.append(apply)
@@ -235,9 +231,7 @@ class Tuner:
         pending = self._pending
         while pending:
             pending.popleft()(time_s)
-        objects = self._objects_pending
-        while objects and time_s + 1e-9 >= objects[0].spawn_at_s:
-            self.world.spawn(objects.pop(0))
+        self._spawn_objects(time_s)
         for feed in self._feeds.values():
             feed.controller.set_command(feed.source.sample(time_s - feed.started_s))
         if self.paused or self.reset_wanted or self.shutdown:
@@ -260,7 +254,7 @@ class Tuner:
         self.manager.start(names)
         self.loop.cycle = 0
         self.buffer.clear()
-        self._objects_pending = list(self._objects)
+        self._spawn_objects = object_spawner(self.world, self.scenario.objects)
         self.weight_dropped = False
         for name, feed in self._feeds.items():
             feed.source.reset()
@@ -278,8 +272,3 @@ def stream_columns(buffer: LiveBuffer, joint: str) -> list[tuple[str, int]]:
     columns = [(q, buffer.column(f"{joint}.{q}")) for q in ("command", "position", "velocity", "effort")]
     columns += [(f"force:{s}", buffer.column(f"{s}.force_z")) for s in buffer.sensor_names]
     return columns
-
-
-def finite_or_none(values) -> list[float | None]:
-    """JSON-ready: NaN (no controller commands the joint) becomes null."""
-    return [v if math.isfinite(v) else None for v in values]
