@@ -155,15 +155,18 @@ def _serve(args: argparse.Namespace) -> int:
 
     scenario = _live_scenario(args)
     try:
-        from jointctl.ros.node import check_actions, serve
+        from jointctl.ros.node import check_actions, check_command_topics, serve
     except ImportError as exc:
         raise JointCtlError(f"ROS 1 is not available ({exc}); install it with 'make ros'") from None
+    ros_section = scenario.robot.extras.get("ros") or {}
+    source = str(scenario.robot.folder)
     session = Session(scenario)
     started = {c.name for c in session.manager.active}
-    actions = {name: spec for name, spec in check_actions(
-        (scenario.robot.extras.get("ros") or {}).get("actions"), str(scenario.robot.folder)).items()
-        if spec["controller"] in started}
-    serve(session, sim_time=args.sim_time, speed=args.speed, actions=actions)
+    actions = {name: spec for name, spec in check_actions(ros_section.get("actions"), source).items()
+               if spec["controller"] in started}
+    topics = {topic: name for topic, name in check_command_topics(ros_section.get("command_topics"), source).items()
+              if name in started}
+    serve(session, sim_time=args.sim_time, speed=args.speed, actions=actions, command_topics=topics)
     return 0
 
 

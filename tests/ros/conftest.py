@@ -93,6 +93,15 @@ def joint_position(env, topic: str = "/one_DOF_robot/joint_states") -> float:
     return float(re.search(r"position: \[([-0-9.e]+)", text).group(1))
 
 
+def joint_positions(env, topic: str, count: int, column: str = "field.position0") -> list[float]:
+    """``column`` of the next ``count`` messages of a JointState ``topic``."""
+    text = run(env, "rostopic", "echo", "-p", "-n", str(count), topic, timeout=30).stdout
+    lines = [line for line in text.splitlines() if line.strip()]
+    header = lines[0].lstrip("%").split(",")
+    index = header.index(column)
+    return [float(line.split(",")[index]) for line in lines[1:]]
+
+
 def settle_to(env, target: float, timeout_s: float = 10.0, tol: float = 0.002) -> float:
     """Poll the joint position until it is within ``tol`` of ``target``; the last position seen."""
     deadline = time.monotonic() + timeout_s

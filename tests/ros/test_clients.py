@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from tests.ros.conftest import run, wait_for_topic
+from tests.ros.conftest import joint_positions, run, wait_for_topic
 
 ONE_DOF_STATES = "/one_DOF_robot/joint_states"
 ARM_STATES = "/arm7dof/joint_states"
@@ -67,14 +67,6 @@ class Terminal:
             self.text += chunk.decode(errors="replace")
         os.close(self.master)
         return status
-
-
-def joint_positions(env, topic: str, count: int, column: str = "field.position0") -> list[float]:
-    text = run(env, "rostopic", "echo", "-p", "-n", str(count), topic, timeout=30).stdout
-    lines = [line for line in text.splitlines() if line.strip()]
-    header = lines[0].lstrip("%").split(",")
-    index = header.index(column)
-    return [float(line.split(",")[index]) for line in lines[1:]]
 
 
 def test_the_sine_commander_drives_the_position_controller(ros_env, serve):

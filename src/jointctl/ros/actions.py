@@ -1,18 +1,38 @@
 """Trajectory action servers on a :class:`~jointctl.trajectory.executor.TrajectoryExecutor`.
 
-One class serves the three action types the chapter and ROS users expect:
-``control_msgs/FollowJointTrajectory`` (result error_code + error_string), the chapter's
-``example_trajectory/TrajAction`` (result ``rtn_status``: the error code, 0 on success) and the
-arm streamer's ``arm7dof_traj_as/trajAction`` (result ``return_val``: goals served so far).
-Goals are validated before they are accepted: a refused goal is REJECTED with the validation
-text and nothing moves. Each goal ends exactly once: succeeded, aborted or canceled (preempted).
+Three action types: ``control_msgs/FollowJointTrajectory`` (result error_code + error_string),
+the chapter's ``example_trajectory/TrajAction`` (result ``rtn_status``: the error code, 0 on
+success) and the arm streamer's ``arm7dof_traj_as/trajAction`` (result ``return_val``: goals
+served so far). Two goal semantics, side by side (docs/ros.md):
+
+- :class:`TrajectoryActionServer`, for ``follow_joint_trajectory``: ROS's
+  joint_trajectory_controller. A goal is validated on arrival against the current desired state
+  and REJECTED with the validation text if it is bad (nothing moves); a new goal replaces the
+  running one with a splice (the old one ends PREEMPTED); ``header.stamp`` is honoured (a zero
+  stamp means "now").
+- :class:`QueuedTrajectoryActionServer`, for the chapter's servers (``traj``, ``arm7dof_traj``):
+  actionlib's SimpleActionServer with an execute callback, as the book's
+  ``example_trajectory_action_server`` and ``arm7dof_traj_as`` are. Goals run one after another in
+  order of arrival: a goal that arrives while one executes waits (PENDING); a still newer one
+  replaces the waiting one, which SimpleActionServer cancels (a pending goal canceled ends
+  RECALLED). ``header.stamp`` is ignored: time starts when the goal starts, and a first point at
+  time 0 is checked against where the goal starts (the previous goal's end). A goal that can
+  never run (bad joints, values, times or limits) is REJECTED on arrival; one whose start does
+  not match where the robot is when its turn comes is ABORTED, and nothing moves. Unlike the
+  book's servers, a client's cancel of the running goal is honoured: the joints decelerate to
+  rest and the goal ends PREEMPTED.
+
+Each goal ends exactly once: succeeded, aborted, canceled (preempted or recalled) or rejected.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 
 import actionlib
+import rospy
+from actionlib_msgs.msg import GoalStatus as RosGoalStatus
 from trajectory_msgs.msg import JointTrajectoryPoint as RosPoint
 
 from jointctl.ros.conversions import trajectory_from_ros
@@ -20,6 +40,9 @@ from jointctl.trajectory.errors import InvalidTrajectory, TrajectoryErrorCode
 from jointctl.trajectory.executor import GoalResult, GoalStatus, TrajectoryExecutor, TrajectoryFeedback
 
 KINDS = ("follow_joint_trajectory", "traj", "arm7dof_traj")
+#: The kinds the book serves with a SimpleActionServer (queued goals, stamps ignored).
+QUEUED_KINDS = ("traj", "arm7dof_traj")
+WAIT_POLL_S = 0.02  # how often a queued goal's execute thread looks for a cancel [s]
 
 
 def _action_types(kind: str):
@@ -34,20 +57,54 @@ def _action_types(kind: str):
     return trajAction, trajResult, trajFeedback
 
 
-class TrajectoryActionServer:
-    """Serves ``kind`` goals under ``name`` on ``executor``.
+class _Messages:
+    """Result and feedback messages of one action kind."""
 
-    ``loop_time`` maps a ROS time in seconds to loop time (for stamped goals) and back.
+    def __init__(self, kind: str, executor: TrajectoryExecutor, clock) -> None:
+        if kind not in KINDS:
+            raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+        self.kind, self.executor, self.clock = kind, executor, clock
+        self.action, self._result_type, self._feedback_type = _action_types(kind)
+
+    def feedback(self, feedback: TrajectoryFeedback):
+        msg = self._feedback_type()
+        if self.kind == "follow_joint_trajectory":
+            msg.header.stamp = self.clock.ros_time(feedback.time_s)
+            msg.joint_names = list(feedback.joint_names)
+            msg.desired = RosPoint(positions=list(feedback.desired_positions),
+                                   velocities=list(feedback.desired_velocities))
+            msg.actual = RosPoint(positions=list(feedback.actual_positions),
+                                  velocities=list(feedback.actual_velocities))
+            msg.error = RosPoint(positions=list(feedback.errors))
+        else:
+            msg.fdbk = int(round(feedback.time_s * 1000))  # loop time in ms: progress made visible
+        return msg
+
+    def result(self, code: TrajectoryErrorCode, text: str):
+        msg = self._result_type()
+        if self.kind == "follow_joint_trajectory":
+            msg.error_code, msg.error_string = int(code), text
+        elif self.kind == "traj":
+            msg.rtn_status = int(code)
+        else:
+            msg.return_val = self.executor.goals_served
+        return msg
+
+
+class TrajectoryActionServer:
+    """Serves ``kind`` goals under ``name`` on ``executor`` with joint_trajectory_controller
+    semantics (replace and splice, stamps honoured).
+
+    ``clock`` maps ROS time onto loop time (``ros_time_at_loop_zero``, ``loop_now``) and back
+    (``ros_time``).
     """
 
     def __init__(self, name: str, kind: str, executor: TrajectoryExecutor, clock) -> None:
-        if kind not in KINDS:
-            raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+        self.messages = _Messages(kind, executor, clock)
         self.name, self.kind, self.executor, self.clock = name, kind, executor, clock
-        action, self._result_type, self._feedback_type = _action_types(kind)
         self._lock = threading.Lock()
-        self.server = actionlib.ActionServer(name, action, goal_cb=self._on_goal, cancel_cb=self._on_cancel,
-                                             auto_start=False)
+        self.server = actionlib.ActionServer(name, self.messages.action, goal_cb=self._on_goal,
+                                             cancel_cb=self._on_cancel, auto_start=False)
         self._handles: dict[str, object] = {}
         self.server.start()
 
@@ -59,10 +116,10 @@ class TrajectoryActionServer:
         try:
             handle = self.executor.submit(
                 trajectory, now_s=self.clock.loop_now(),
-                on_feedback=lambda fb: self._on_feedback(gh, fb),
+                on_feedback=lambda fb: gh.publish_feedback(self.messages.feedback(fb)),
                 on_done=lambda result: self._on_done(gh, result, accepted))
         except InvalidTrajectory as exc:
-            gh.set_rejected(self._result(exc.error_code, str(exc)), str(exc))
+            gh.set_rejected(self.messages.result(exc.error_code, str(exc)), str(exc))
             return
         with self._lock:
             self._handles[gh.get_goal_id().id] = handle
@@ -75,26 +132,14 @@ class TrajectoryActionServer:
         if handle is not None:
             handle.cancel()
 
-    # -- executor callbacks (the loop thread: must only queue) --------------------------------
-    def _on_feedback(self, gh, feedback: TrajectoryFeedback) -> None:
-        msg = self._feedback_type()
-        if self.kind == "follow_joint_trajectory":
-            msg.header.stamp = self.clock.ros_time(feedback.time_s)
-            msg.joint_names = list(feedback.joint_names)
-            msg.desired = RosPoint(positions=list(feedback.desired_positions),
-                                   velocities=list(feedback.desired_velocities))
-            msg.actual = RosPoint(positions=list(feedback.actual_positions),
-                                  velocities=list(feedback.actual_velocities))
-            msg.error = RosPoint(positions=list(feedback.errors))
-        else:
-            msg.fdbk = int(round(feedback.time_s * 1000))  # loop time in ms: progress made visible
-        gh.publish_feedback(msg)
-
+    # -- executor callback (the loop thread: must only queue) ---------------------------------
     def _on_done(self, gh, result: GoalResult, accepted: threading.Event) -> None:
+        if result.status is GoalStatus.REJECTED:
+            return  # refused in submit: _on_goal rejects it (an abort before the rejection would be an error)
         accepted.wait(1.0)  # a goal can end before actionlib's thread has marked it accepted
         with self._lock:
             self._handles.pop(gh.get_goal_id().id, None)
-        msg = self._result(result.error_code, result.error_string)
+        msg = self.messages.result(result.error_code, result.error_string)
         if result.status is GoalStatus.SUCCEEDED:
             gh.set_succeeded(msg, result.error_string)
         elif result.status is GoalStatus.PREEMPTED:
@@ -102,12 +147,73 @@ class TrajectoryActionServer:
         else:
             gh.set_aborted(msg, result.error_string)
 
-    def _result(self, code: TrajectoryErrorCode, text: str):
-        msg = self._result_type()
-        if self.kind == "follow_joint_trajectory":
-            msg.error_code, msg.error_string = int(code), text
-        elif self.kind == "traj":
-            msg.rtn_status = int(code)
+
+class _RejectingSimpleActionServer(actionlib.SimpleActionServer):
+    """actionlib's SimpleActionServer, refusing on arrival a goal that can never run."""
+
+    def __init__(self, name, action, execute_cb, check) -> None:
+        self._check = check
+        super().__init__(name, action, execute_cb=execute_cb, auto_start=False)
+
+    def internal_goal_callback(self, goal) -> None:
+        refusal = self._check(goal.get_goal())
+        if refusal is not None:
+            result, text = refusal
+            goal.set_rejected(result, text)
+            return
+        super().internal_goal_callback(goal)
+
+
+class QueuedTrajectoryActionServer:
+    """Serves ``kind`` goals under ``name`` on ``executor`` as the book's SimpleActionServers do:
+    queued in order of arrival, stamps ignored (see the module's docstring)."""
+
+    def __init__(self, name: str, kind: str, executor: TrajectoryExecutor, clock) -> None:
+        self.messages = _Messages(kind, executor, clock)
+        self.name, self.kind, self.executor, self.clock = name, kind, executor, clock
+        self.server = _RejectingSimpleActionServer(name, self.messages.action, self._execute, self._refusal)
+        self.server.start()
+
+    @staticmethod
+    def _trajectory(goal):
+        """The goal's trajectory with its stamp dropped: time starts when the goal starts."""
+        return dataclasses.replace(trajectory_from_ros(goal.trajectory), stamp_s=0.0)
+
+    def _refusal(self, goal):
+        """(result, text) for a goal that can never run; None for one that may."""
+        try:
+            self.executor.check_goal_shape(self._trajectory(goal))
+        except InvalidTrajectory as exc:
+            return self.messages.result(exc.error_code, str(exc)), str(exc)
+        return None
+
+    def _execute(self, goal) -> None:
+        """SimpleActionServer's execute callback (its own thread): run the goal to its end."""
+        server = self.server
+        try:
+            handle = self.executor.submit(
+                self._trajectory(goal), now_s=self.clock.loop_now(),
+                on_feedback=lambda fb: server.publish_feedback(self.messages.feedback(fb)))
+        except InvalidTrajectory as exc:
+            server.set_aborted(self.messages.result(exc.error_code, str(exc)), str(exc))
+            return
+        while handle.wait(WAIT_POLL_S) is None:
+            # A newer goal also raises SimpleActionServer's preempt flag: that one waits its turn.
+            # Only a cancel of this goal (status PREEMPTING) stops it.
+            canceled = server.current_goal.get_goal_status().status == RosGoalStatus.PREEMPTING
+            if (canceled or rospy.is_shutdown()) and not handle.cancel_requested:
+                handle.cancel()
+        result = handle.result
+        msg = self.messages.result(result.error_code, result.error_string)
+        if result.status is GoalStatus.SUCCEEDED:
+            server.set_succeeded(msg, result.error_string)
+        elif result.status is GoalStatus.PREEMPTED:
+            server.set_preempted(msg, result.error_string)
         else:
-            msg.return_val = self.executor.goals_served
-        return msg
+            server.set_aborted(msg, result.error_string)
+
+
+def action_server(name: str, kind: str, executor: TrajectoryExecutor, clock):
+    """The server the kind calls for: queued for the book's action types, replacing otherwise."""
+    server = QueuedTrajectoryActionServer if kind in QUEUED_KINDS else TrajectoryActionServer
+    return server(name, kind, executor, clock)

@@ -6,9 +6,12 @@ Under the robot's namespace (``one_DOF_robot``, ``arm7dof``):
 - ``<controller>/command`` (std_msgs/Float64) for every started joint controller that no other
   controller commands; non-finite values are refused, logged and ignored;
 - ``<controller>/state`` (control_msgs/JointControllerState) at ``state_rate_hz``;
+- the command topics named in the robot's ``robot.yaml`` under ``ros.command_topics`` (topic ->
+  controller; Part 2's minimal robot: the global ``/pos_cmd``), while nothing else commands it;
 - ``<executor>/follow_joint_trajectory`` (control_msgs/FollowJointTrajectory) for every
-  trajectory executor, plus the chapter's servers named in the robot's ``robot.yaml``
-  (``example_traj_action_server``, ``trajActionServer``);
+  trajectory executor (joint_trajectory_controller semantics), plus the chapter's servers named
+  in the robot's ``robot.yaml`` (``example_traj_action_server``, ``trajActionServer``) with the
+  book's SimpleActionServer semantics (see :mod:`jointctl.ros.actions`);
 - each force-torque sensor's topic from the URDF (``/ft_sensor_topic``) at its update rate;
 - a dynamic_reconfigure server per PID at ``<controller>/pid``: gains change while running,
   validated (finite, non-negative), applied at the next cycle;
@@ -41,7 +44,7 @@ from jointctl.control.joint_controllers import _EffortJointController
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.control.manager import read_yaml
 from jointctl.errors import ConfigError, InvalidCommand, JointCtlError
-from jointctl.ros.actions import TrajectoryActionServer
+from jointctl.ros.actions import TrajectoryActionServer, action_server
 from jointctl.ros.conversions import joint_state_to_ros, wrench_to_ros
 from jointctl.ros.gains import attach_gain_servers
 from jointctl.runtime.clock import WallClockPacer
@@ -97,6 +100,7 @@ class RosNode:
 
     def __init__(self, session: Session, *, sim_time: bool = False,
                  actions: Mapping[str, Mapping[str, str]] | None = None,
+                 command_topics: Mapping[str, str] | None = None,
                  state_rate_hz: float = 50.0) -> None:
         self.session = session
         manager = session.manager
@@ -118,6 +122,15 @@ class RosNode:
             elif isinstance(controller, _EffortJointController) and manager.command_owner(controller.name) is None:
                 rospy.Subscriber(f"{ns}/{controller.name}/command", Float64, self._command_callback(controller),
                                  queue_size=1)
+        for topic, name in (command_topics or {}).items():
+            # Extra command topics from robot.yaml (Part 2's global ``pos_cmd``): the same door, offered
+            # while no other controller (a trajectory executor) commands that controller.
+            controller = manager.controller(name)
+            if not isinstance(controller, _EffortJointController):
+                raise ConfigError("a command topic needs a joint position or velocity controller",
+                                  source=session.robot.source, field=f"ros.command_topics.{topic}", value=name)
+            if manager.command_owner(name) is None:
+                rospy.Subscriber(topic, Float64, self._command_callback(controller), queue_size=1)
         self._state_publishers(ns, state_rate_hz)
         self._sensor_publishers()
         self.servers = [TrajectoryActionServer(f"{ns}/{c.name}/follow_joint_trajectory",
@@ -125,7 +138,7 @@ class RosNode:
                         for c in manager.active if isinstance(c, TrajectoryExecutor)]
         for name, spec in (actions or {}).items():
             executor = manager.controller(spec["controller"])
-            self.servers.append(TrajectoryActionServer(name, spec["type"], executor, self.clock))
+            self.servers.append(action_server(name, spec["type"], executor, self.clock))
         #: dynamic_reconfigure servers at <ns>/<controller>/pid: PID gains changed while running.
         self.gain_servers = attach_gain_servers(self)
         self._lateness_publisher(ns)
@@ -243,7 +256,8 @@ def _watch_master(loop, lost: list) -> None:
 
 
 def serve(session: Session, *, sim_time: bool = False, speed: float = 1.0,
-          actions: Mapping[str, Mapping[str, str]] | None = None, node_name: str | None = None) -> None:
+          actions: Mapping[str, Mapping[str, str]] | None = None,
+          command_topics: Mapping[str, str] | None = None, node_name: str | None = None) -> None:
     """Start (or join) a master, bring the session up as a node and run until stopped."""
     master = ensure_master()
     # The loop thread must get the GIL back quickly after each sleep, while rospy's threads work:
@@ -252,7 +266,7 @@ def serve(session: Session, *, sim_time: bool = False, speed: float = 1.0,
     try:
         name = node_name or f"jointctl_{session.robot.name}"
         rospy.init_node(name, anonymous=False, disable_signals=True)
-        node = RosNode(session, sim_time=sim_time, actions=actions)
+        node = RosNode(session, sim_time=sim_time, actions=actions, command_topics=command_topics)
         rospy.loginfo("jointctl: %s up under /%s", session.robot.name, node.namespace)
         lost: list[str] = []
         threading.Thread(target=_watch_master, args=(session.loop, lost), daemon=True,
@@ -284,4 +298,18 @@ def check_actions(actions: object, source: str) -> dict:
     return actions
 
 
-__all__ = ["RosNode", "check_actions", "ensure_master", "serve"]
+def check_command_topics(topics: object, source: str) -> dict:
+    """The ``ros.command_topics`` mapping of a robot.yaml: topic name -> joint controller name."""
+    if topics is None:
+        return {}
+    if not isinstance(topics, dict):
+        raise ConfigError("must map topic names to controller names", source=source,
+                          field="ros.command_topics", value=topics)
+    for topic, controller in topics.items():
+        if not isinstance(topic, str) or not topic or not isinstance(controller, str) or not controller:
+            raise ConfigError("needs a topic name and the name of the joint controller it commands",
+                              source=source, field=f"ros.command_topics.{topic}", value=controller)
+    return topics
+
+
+__all__ = ["RosNode", "check_actions", "check_command_topics", "ensure_master", "serve"]

@@ -262,6 +262,32 @@ class TrajectoryExecutor(Controller):
                              f"replaced by goal {handle.id} before it started", now)
         return handle
 
+    def check_goal_shape(self, trajectory: JointTrajectory) -> None:
+        """Check what does not depend on where the goal will start: joint names, point count and
+        sizes, finite values, times, position and velocity limits, speeds between the goal's points.
+
+        For servers that queue goals (the chapter's SimpleActionServers): a goal that can never run
+        is refused on arrival; where it starts is checked by :meth:`submit` when its turn comes.
+        Raises :class:`InvalidTrajectory`.
+        """
+        if not self._running:
+            raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL, "the trajectory controller is not running",
+                                    value=self.name)
+        points = trajectory.points if isinstance(trajectory, JointTrajectory) else ()
+        if isinstance(points, tuple) and 0 < len(points) < self.min_points:
+            raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL,
+                                    f"needs at least {self.min_points} points", value=len(points))
+        # Pretend the goal starts at its own first point: the start check and the first segment's
+        # speed are then about the goal alone.
+        start = list(self.desired)
+        if points and isinstance(trajectory.joint_names, tuple):
+            first = points[0].positions
+            for name, q in zip(trajectory.joint_names, first if isinstance(first, tuple) else ()):
+                if name in self.joint_names and isinstance(q, (int, float)) and math.isfinite(q):
+                    start[self.joint_names.index(name)] = float(q)
+        validate_trajectory(trajectory, self.specs, now_s=self._last_time_s, current_positions=start,
+                            start_tolerance=math.inf, check_velocity=self.check_velocity_limits)
+
     def _check_time_left(self, goal: ValidatedTrajectory, now_s: float) -> None:
         """A goal stamped in the past skips its past points: the first future point must still be
         reachable from the current desired position within the velocity limits."""
