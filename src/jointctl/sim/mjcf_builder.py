@@ -12,6 +12,8 @@ loses the mass of a root fixed to the world. Here:
   range the joint's effort limit;
 - every force-torque sensor becomes a site at its link's origin with MuJoCo
   ``force`` and ``torque`` sensors;
+- every limited joint's limit is a stiff stop: its solver parameters come from
+  the timestep (:func:`limit_solref`, docs/simulation.md), not MuJoCo's soft default;
 - gravity and timestep come from :class:`WorldSettings`, not from the URDF.
 """
 
@@ -52,6 +54,47 @@ class WorldSettings:
     floor: bool = True
 
 
+# -- joint limits as stops ------------------------------------------------------
+#
+# MuJoCo's limit is a soft constraint. With solref = (tau, zeta) and impedance d, an active limit's
+# penetration r (m or rad) obeys, for d near dmax,
+#     r'' + (2/tau) r' + r/(zeta tau)^2 = (1 - d) a0,
+# a mass-spring-damper with time constant tau, where a0 = f * invweight is the acceleration the push f
+# (N or N·m) would give the free joint (invweight: MuJoCo's inverse joint inertia, 1/kg or 1/(kg·m²)).
+# At rest MuJoCo's solution is exactly
+#     r = (1 - d)/d² · dmax² · tau² · zeta² · invweight · f,
+# i.e. a stop of stiffness f/r = 1 / ((1 - d)/d² · dmax² · tau² · zeta² · invweight).
+# MuJoCo's default tau = 0.02 s leaves the 1-DOF piston (1.01 kg) 3.8 mm past its limit under 200 N
+# (19.6 mm under its 1000 N effort limit).
+# The stiffest stop that stays stable is tau = 2 timesteps (MuJoCo's own rule and floor:
+# it raises any smaller tau to 2·timestep); critical damping (zeta = 1) stops without bouncing.
+# The impedance is MuJoCo's default, stated here because the bound below depends on it.
+
+LIMIT_TIMECONST_STEPS = 2.0
+"""The limits' time constant in physics steps: MuJoCo's minimum for a stable constraint."""
+LIMIT_DAMPRATIO = 1.0
+"""Critical damping: a joint driven into its limit stops without bouncing back."""
+LIMIT_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
+"""Limit impedance (dmin, dmax, width [m or rad], midpoint, power): MuJoCo's default."""
+
+
+def limit_solref(timestep_s: float) -> tuple[float, float]:
+    """The joint-limit ``solref`` (time constant [s], damping ratio) for a physics step [s]."""
+    return (LIMIT_TIMECONST_STEPS * timestep_s, LIMIT_DAMPRATIO)
+
+
+def limit_overshoot_bound(effort: float, invweight: float, timestep_s: float) -> float:
+    """Largest steady overshoot past a limit [m or rad] under a constant push ``effort`` [N or N·m].
+
+    ``invweight`` is MuJoCo's inverse inertia of the joint (``MjModel.dof_invweight0``, 1/kg or
+    1/(kg·m²)). The impedance d lies in [dmin, dmax] and (1 - d)/d² falls as d grows, so d = dmin
+    bounds the resting penetration (1 - d)/d² · dmax² · tau² · zeta² · invweight · effort from above.
+    """
+    dmin, dmax = LIMIT_SOLIMP[0], LIMIT_SOLIMP[1]
+    tau, zeta = limit_solref(timestep_s)
+    return (1.0 - dmin) / dmin**2 * dmax**2 * tau**2 * zeta**2 * invweight * abs(effort)
+
+
 def sensor_site_name(sensor_name: str) -> str:
     return f"{sensor_name}_site"
 
@@ -70,14 +113,15 @@ def build_spec(robot: RobotModel, settings: WorldSettings) -> mujoco.MjSpec:
             name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5.0, 5.0, 0.1],
             rgba=[0.8, 0.8, 0.8, 1.0],
         )
-    _Builder(robot, spec).build()
+    _Builder(robot, spec, settings).build()
     return spec
 
 
 class _Builder:
-    def __init__(self, robot: RobotModel, spec: mujoco.MjSpec) -> None:
+    def __init__(self, robot: RobotModel, spec: mujoco.MjSpec, settings: WorldSettings) -> None:
         self.robot = robot
         self.spec = spec
+        self.limit_solref = list(limit_solref(settings.timestep_s))
         self.meshes: dict[tuple[str, tuple[float, float, float]], str] = {}
 
     def error(self, message: str, field: str, value=None) -> ModelError:
@@ -138,7 +182,8 @@ class _Builder:
                       damping=joint.damping, frictionloss=joint.friction, armature=joint.armature)
         lim = joint.limits
         if lim is not None and lim.lower is not None:
-            kwargs.update(limited=mujoco.mjtLimited.mjLIMITED_TRUE, range=[lim.lower, lim.upper])
+            kwargs.update(limited=mujoco.mjtLimited.mjLIMITED_TRUE, range=[lim.lower, lim.upper],
+                          solref_limit=self.limit_solref, solimp_limit=list(LIMIT_SOLIMP))
         else:
             kwargs.update(limited=mujoco.mjtLimited.mjLIMITED_FALSE)
         body.add_joint(**kwargs)
