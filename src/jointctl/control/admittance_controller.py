@@ -9,9 +9,16 @@ the force measured at the robot's force-torque sensor. Each cycle::
     velocity_controller.command = v_ref
 
 At rest ``x = x_att + F/K``. Units: m, m/s, N, kg, N/m, N·s/m for a prismatic
-joint (rad, N·m... for a revolute one). ``state_rate_hz`` samples position,
-velocity and force at a lower rate and holds them in between, to show what
-stale state (the chapter's 50 Hz joint states over topics) does to the loop.
+joint (rad, N·m... for a revolute one).
+
+Two optional rates model a controller that runs outside the loop and is fed over topics, as the
+chapter's ``nac_controller`` node is: ``joint_state_rate_hz`` samples position *and* velocity (one
+``sensor_msgs/JointState`` message carries both) at that rate and holds them in between;
+``force_rate_hz`` does the same for the sensed force (one ``geometry_msgs/WrenchStamped``). The
+integration of ``v_ref`` and the command stay at the loop rate either way, as in the node. The
+chapter's setup is ``joint_state_rate_hz: 50`` (the joint state controller's ``publish_rate``) with
+the force fresh every cycle (the sensor plugin's ``updateRate`` is 1000); both at 50 Hz is the
+fully stale case. Unset, a signal is read every cycle.
 """
 
 from __future__ import annotations
@@ -48,7 +55,8 @@ class AdmittanceController(Controller):
         self.damping = params.number("damping", minimum=0)
         self.attractor = params.number("attractor")
         self.max_velocity = params.number("max_velocity", positive=True)
-        self.state_rate_hz = params.number("state_rate_hz", None, positive=True)
+        self.joint_state_rate_hz = params.number("joint_state_rate_hz", None, positive=True)
+        self.force_rate_hz = params.number("force_rate_hz", None, positive=True)
         params.reject_unknown({"type"})
         self.velocity_reference = 0.0
 
@@ -67,7 +75,8 @@ class AdmittanceController(Controller):
                               source=self.source, field=f"{self.field}.attractor", value=self.attractor)
         self.hardware = hardware
         self.wrench = hardware.wrenches[self.sensor]
-        self.sample_period_s = 1.0 / self.state_rate_hz if self.state_rate_hz else 0.0
+        self.joint_state_period_s = 1.0 / self.joint_state_rate_hz if self.joint_state_rate_hz else 0.0
+        self.force_period_s = 1.0 / self.force_rate_hz if self.force_rate_hz else 0.0
 
     def bind_downstream(self, controllers: dict[str, Controller]) -> None:
         """Receive the velocity controller this controller commands."""
@@ -96,18 +105,21 @@ class AdmittanceController(Controller):
     def start(self, time_s: float) -> None:
         self.hardware.read()
         self.velocity_reference = 0.0
-        self._next_sample_s = time_s
+        self._next_joint_state_s = self._next_force_s = time_s
         self._sample(time_s)
 
     def _sample(self, time_s: float) -> None:
-        hw, i = self.hardware, self.index
-        self.position, self.velocity, self.force = (hw.position[i], hw.velocity[i],
-                                                    self.wrench[self.force_index])
-        self._next_sample_s += self.sample_period_s
+        """Take the signals that are due (every cycle for those without a rate); hold the others."""
+        if time_s + 1e-9 >= self._next_joint_state_s:
+            hw, i = self.hardware, self.index
+            self.position, self.velocity = hw.position[i], hw.velocity[i]
+            self._next_joint_state_s += self.joint_state_period_s
+        if time_s + 1e-9 >= self._next_force_s:
+            self.force = self.wrench[self.force_index]
+            self._next_force_s += self.force_period_s
 
     def update(self, time_s: float, period_s: float) -> None:
-        if time_s + 1e-9 >= self._next_sample_s:
-            self._sample(time_s)
+        self._sample(time_s)
         f = self.stiffness * (self.attractor - self.position) - self.damping * self.velocity + self.force
         v_ref = self.velocity_reference + f / self.mass * period_s
         limit = self.max_velocity
