@@ -76,6 +76,12 @@ def test_bad_input_is_one_line_with_exit_code_2(args, fragments, tmp_path):
     assert not (tmp_path / "o" / "trace.csv").exists()
 
 
+def test_a_good_run_writes_its_trace_where_the_refused_ones_are_checked(tmp_path):
+    result = jointctl("run", "one_dof_step", "--set", "duration_s=1.0", "--out", tmp_path / "o")
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "o" / "trace.csv").exists()
+
+
 def test_unsafe_expression_is_refused(tmp_path, write_scenario):
     cmd = {"type": "expression", "expression": "__import__('os').system('true')", "rate_hz": 100}
     scenario = write_scenario(step_scenario(commands={"joint1_position_controller": cmd}))

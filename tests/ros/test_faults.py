@@ -90,7 +90,7 @@ def test_a_client_killed_mid_goal_leaves_the_server_serving(ros_env, serve, tmp_
     try:
         assert listener.stdout.readline().strip() == "READY"
         first = subprocess.Popen([sys.executable, CLIENT, "follow", TRAJ_SERVER,
-                                  json.dumps({"joint_names": ["joint1"], "points": [[3.0, [-0.3]]]})],
+                                  json.dumps({"joint_names": ["joint1"], "points": [[20.0, [-0.3]]]})],
                                  env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         # Kill it once the joint is on its way (the goal is active).
         deadline = time.monotonic() + 30
@@ -99,11 +99,11 @@ def test_a_client_killed_mid_goal_leaves_the_server_serving(ros_env, serve, tmp_
         assert time.monotonic() < deadline, "the first goal never moved the joint"
         first.send_signal(signal.SIGKILL)
         first.wait(10)
+        # The killed client's goal (20 s long) is still running: the next goal replaces it.
         second = client(ros_env, [[1.0, [-0.4]]])
         assert second["state"] == "SUCCEEDED", second
-        time.sleep(3.0)  # past the first goal's end too
         q, v = state(ros_env, tmp_path)
-        assert q == pytest.approx(-0.4, abs=0.003) or q == pytest.approx(-0.3, abs=0.003)
+        assert q == pytest.approx(-0.4, abs=0.003)
         assert abs(v) < 0.01
         out = json.loads(listener.communicate(timeout=40)[0].strip().splitlines()[-1])
     finally:
@@ -111,8 +111,7 @@ def test_a_client_killed_mid_goal_leaves_the_server_serving(ros_env, serve, tmp_
             listener.kill()
     ids = [goal for goal, _ in out["results"]]
     assert len(ids) == 2 and len(set(ids)) == 2, out["results"]  # each goal ended exactly once
-    statuses = dict(out["results"])
-    assert sorted(statuses.values()) in ([2, 3], [3, 3])  # first: PREEMPTED (2) or SUCCEEDED (3)
+    assert [status for _, status in out["results"]] == [2, 3]  # the first PREEMPTED, the second SUCCEEDED
 
 
 # -- (b) the velocity watchdog over ROS, (c) NaN refused ------------------------------------
@@ -120,12 +119,13 @@ def test_a_client_killed_mid_goal_leaves_the_server_serving(ros_env, serve, tmp_
 def test_velocity_watchdog_stops_the_joint_when_commands_stop(ros_env, serve, tmp_path):
     serve("one_dof", "--controllers", "velocity", "--set", "gravity=0",
           "--set", "controllers.joint1_velocity_controller.command_timeout_s=0.2", wait_topic=JOINT_STATES)
-    out = probe(ros_env, tmp_path, command=VEL_COMMAND, values=[0.05] * 20, every_s=0.05, listen_s=1.5)
+    out = probe(ros_env, tmp_path, command=VEL_COMMAND, values=[0.05] * 20, every_s=0.05, listen_s=2.5)
     samples, stop = out["samples"], out["marks"]["stop"]
     moving = [v for t, _, _, v in samples if out["marks"]["start"] + 0.5 < t < stop]
     assert moving and min(moving) == pytest.approx(0.05, abs=0.01)  # it was streaming at 0.05 m/s
-    # The last command went out at stop - 0.05 s: 0.2 s later the watchdog holds.
-    after = [(t - stop, q, v) for t, _, q, v in samples if t > stop + 0.3]
+    # The last command went out at stop - 0.05 s; the watchdog holds 0.2 s of loop time after it
+    # arrives. A second later (however late this busy machine delivered it) the joint is at rest.
+    after = [(t - stop, q, v) for t, _, q, v in samples if t > stop + 1.0]
     assert after and all(abs(v) < 0.005 for _, _, v in after), after[:5]
     positions = [q for _, q, _ in after]
     assert max(positions) - min(positions) < 0.001
@@ -133,18 +133,26 @@ def test_velocity_watchdog_stops_the_joint_when_commands_stop(ros_env, serve, tm
 
 def test_without_the_watchdog_the_joint_keeps_going(ros_env, serve, tmp_path):
     serve("one_dof", "--controllers", "velocity", "--set", "gravity=0", wait_topic=JOINT_STATES)
-    out = probe(ros_env, tmp_path, command=VEL_COMMAND, values=[0.05] * 10, every_s=0.05, listen_s=1.0)
-    after = [v for t, _, _, v in out["samples"] if t > out["marks"]["stop"] + 0.3]
+    out = probe(ros_env, tmp_path, command=VEL_COMMAND, values=[0.05] * 10, every_s=0.05, listen_s=2.5)
+    after = [v for t, _, _, v in out["samples"] if t > out["marks"]["stop"] + 1.0]
     assert after and min(after) == pytest.approx(0.05, abs=0.01)  # ros_control's behaviour
 
 
 def test_a_nan_velocity_command_is_refused_and_the_joint_keeps_its_state(ros_env, serve, tmp_path):
-    serve("one_dof", "--controllers", "velocity", "--set", "gravity=0", wait_topic=JOINT_STATES)
-    q0, v0 = state(ros_env, tmp_path)
-    assert abs(v0) < 1e-3
-    out = probe(ros_env, tmp_path, command=VEL_COMMAND, values=[float("nan"), float("inf")], listen_s=1.0)
-    after = [(q, v) for t, _, q, v in out["samples"] if t > out["marks"]["stop"]]
-    assert after and all(abs(v) < 1e-3 and q == pytest.approx(q0, abs=1e-4) for q, v in after)
+    node = serve("one_dof", "--controllers", "velocity", "--set", "gravity=0", wait_topic=JOINT_STATES)
+    # Valid commands first, on the same connection: the joint moves, then stops.
+    values = [0.05] * 10 + [0.0] * 6 + [float("nan"), float("inf")]
+    out = probe(ros_env, tmp_path, command=VEL_COMMAND, values=values, every_s=0.05, listen_s=1.0)
+    start, stop = out["marks"]["start"], out["marks"]["stop"]
+    moving = [v for t, _, _, v in out["samples"] if start + 0.2 < t < start + 0.45]
+    assert moving and min(moving) == pytest.approx(0.05, abs=0.01)  # commands arrive
+    after = [(q, v) for t, _, q, v in out["samples"] if t > stop]
+    q_stopped = after[0][0]
+    assert q_stopped > -0.5 + 0.01  # it did move
+    assert all(abs(v) < 1e-3 and q == pytest.approx(q_stopped, abs=1e-4) for q, v in after)
+    node.terminate()
+    log = node.communicate(timeout=20)[0]
+    assert log.count("jointctl: refused") == 2, log[-2000:]  # both bad values arrived and were refused
 
 
 # -- (d) the master restarting ---------------------------------------------------------------

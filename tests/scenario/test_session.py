@@ -19,6 +19,8 @@ def test_a_session_runs_and_the_step_moves_the_joint(write_scenario, tmp_path):
         rtf = session.run()
         assert rtf > 1
         assert session.hardware.position[0] < -0.4
+    # Where a refused session below would have written its trace, a good one does.
+    assert (tmp_path / "out" / "trace.csv").exists()
 
 
 @pytest.mark.parametrize(("changes", "error", "text"), [

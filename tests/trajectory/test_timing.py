@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import ruckig
 
 from jointctl.trajectory.interpolation import build_interpolant
 from jointctl.trajectory.timing import BLEND_VELOCITY_FRACTION, chapter_timing, ruckig_timing
@@ -55,7 +56,6 @@ def test_chapter_timing_value_errors(path, vmax, kwargs, match) -> None:
 
 # --- ruckig_timing -------------------------------------------------------------------------------
 
-ruckig = pytest.importorskip("ruckig")
 
 
 def _path(seed: int = 0, n_points: int = 6) -> np.ndarray:

@@ -86,7 +86,7 @@ def test_binary_and_malformed_messages_get_an_error_reply_and_the_connection_sta
 def test_stopping_the_command_ends_it_cleanly(tune):
     server = tune("one_dof")
     code, err = server.stop()
-    assert code in (0, -15), err
+    assert code == 0, err  # SIGTERM, as a service manager stops it: a clean exit
     assert "Traceback" not in err
 
 

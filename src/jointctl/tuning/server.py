@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import json
 import math
+import signal
 import socket
 import sys
 from importlib import resources
@@ -256,6 +257,11 @@ def serve_tuning(tuner: Tuner, *, host: str = "127.0.0.1", port: int = 8765, spe
     config = uvicorn.Config(app, ws="websockets-sansio", ws_max_size=MAX_REQUEST_CHARS + 1024, lifespan="off",
                             log_level="warning", access_log=False, ws_per_message_deflate=False)
     server = uvicorn.Server(config)
+    # A stop by signal is a clean exit (status 0), whenever it comes: before uvicorn listens, this
+    # handler asks the server to exit; after, uvicorn shuts down gracefully and raises the signal
+    # again for the handler that was there before it, this one.
+    previous = {sig: signal.signal(sig, lambda *_: setattr(server, "should_exit", True))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
     address_host = f"[{host}]" if ":" in host else host
     announce(f"jointctl: tuning {tuner.session.robot.name} at http://{address_host}:{sock.getsockname()[1]}/ "
              f"(speed {speed:g}; Ctrl-C stops)")
@@ -264,6 +270,8 @@ def serve_tuning(tuner: Tuner, *, host: str = "127.0.0.1", port: int = 8765, spe
     try:
         server.run(sockets=[sock])
     finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         runner.stop()
         sock.close()
         tuner.close()
