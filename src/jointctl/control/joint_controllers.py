@@ -81,6 +81,18 @@ class _EffortJointController(Controller):
 
 
 FEEDFORWARD_TERMS = ("gravity", "damping", "inertia")
+_TWO_PI = 2.0 * math.pi
+
+
+def wrap_angle(angle: float) -> float:
+    """``angle`` [rad] plus the whole turns that bring it into (-π, π] [rad]."""
+    wrapped = angle - _TWO_PI * math.ceil((angle - math.pi) / _TWO_PI)
+    # Rounding in the subtraction can land a hair outside the interval; fold it back.
+    if wrapped <= -math.pi:
+        wrapped += _TWO_PI
+    elif wrapped > math.pi:
+        wrapped -= _TWO_PI
+    return wrapped
 
 
 @register_controller("effort_controllers/JointPositionController")
@@ -90,8 +102,16 @@ class JointPositionController(_EffortJointController):
     The derivative term uses ``velocity_reference - measured velocity`` (zero
     reference unless one is given), not a finite difference of the position
     error: no derivative kick on steps, no differencing noise; so a velocity
-    reference acts as velocity feed-forward through ``d``. On start the
-    controller holds the joint where it is.
+    reference acts as velocity feed-forward through ``d``. A position-only
+    command (a ``command`` topic, or an executor without velocity feed-forward)
+    therefore gives exactly ``p·err - d·q̇``: derivative on measurement, the law of
+    the book's minimal_joint_controller. On start the controller holds the joint
+    where it is.
+
+    On a continuous joint (no position limits) the error is the shortest way
+    round: ``command - position`` wrapped to (-π, π] rad, as ros_control's
+    controller and the book's minimal_joint_controller do, so a command of
+    3 rad with the joint at -3 rad turns it 0.28 rad backwards, not 6 rad forwards.
 
     ``feedforward: {gravity: true, damping: true, inertia: true}`` adds, from the
     robot model: the effort holding the measured pose against gravity, the
@@ -113,6 +133,7 @@ class JointPositionController(_EffortJointController):
         super().configure(hardware, robot)
         self._command = (0.0, 0.0, 0.0)
         self.joint_damping = robot.joint(self.joint).damping
+        self.continuous = robot.joint(self.joint).type == "continuous"
         self._gravity = "gravity" in self.feedforward_terms
         self._damping = "damping" in self.feedforward_terms
         self._inertia = "inertia" in self.feedforward_terms
@@ -156,7 +177,10 @@ class JointPositionController(_EffortJointController):
         i = self.index
         self.references[i] = position
         hw = self.hardware
-        effort = self.pid.compute(position - hw.position[i], velocity - hw.velocity[i], period_s)
+        error = position - hw.position[i]
+        if self.continuous and not -math.pi < error <= math.pi:
+            error = wrap_angle(error)
+        effort = self.pid.compute(error, velocity - hw.velocity[i], period_s)
         if self.feedforward_terms:
             model = self._model
             if self._gravity:

@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from jointctl.errors import ConfigError
+from jointctl.scenario.minimal_robot_analysis import analyse_minimal_robot_trajectory
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import flatten
 from jointctl.tools import figures
@@ -655,6 +656,7 @@ ANALYSES: dict[str, Analysis] = {
     "nac_catch": analyse_nac_catch,
     "trajectory_tracking": analyse_trajectory_tracking,
     "arm_pose": analyse_arm_pose,
+    "minimal_robot_trajectory": analyse_minimal_robot_trajectory,
 }
 
 
