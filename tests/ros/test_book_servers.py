@@ -10,7 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
+from jointctl.model.loader import load_robot_model
+from jointctl.scenario.minimal_robot_analysis import pendulum_theory
 from jointctl.trajectory.timing import chapter_timing
 from tests.ros.conftest import joint_positions, run, settle_to
 
@@ -126,3 +129,33 @@ def test_a_cancel_of_the_running_goal_stops_it_and_the_next_goal_runs(ros_env, s
     assert a["state"] == "PREEMPTED"
     q = settle_to(ros_env, -0.1, timeout_s=2.0)
     assert -0.45 < q < -0.15  # stopped on the way, short of the goal
+
+
+# -- Part 2's minimal robot, as the book's trajectory example runs on it -----------------------
+
+MINIMAL_GOAL = Path(__file__).resolve().parents[2] / "robots" / "minimal_robot" / "goals" / "example_trajectory_client.yaml"
+
+
+def test_the_book_clients_sine_goal_succeeds_on_the_minimal_robot(ros_env, serve):
+    serve("minimal_robot", "--controllers", "trajectory", wait_topic=ONE_DOF_STATES)
+    points = yaml.safe_load(MINIMAL_GOAL.read_text())["points"]
+    goal = {"joint_names": ["joint1"], "points": [[p["time_from_start"], p["positions"]] for p in points]}
+    assert max(q for _, (q,) in goal["points"]) > 0.99  # the book's 0..1 rad sine, outside one_dof's range
+    done, = send_goals(ros_env, "traj", "example_traj_action_server", [goal])
+    assert done["state"] == "SUCCEEDED" and done["result"]["rtn_status"] == 0
+    final = goal["points"][-1][1][0]
+    # Kp 10 with the model's gravity fed forward: the pendulum settles on the goal's last point.
+    assert settle_to(ros_env, final, timeout_s=10.0) == pytest.approx(final, abs=0.02)
+
+
+def test_the_global_pos_cmd_topic_commands_the_minimal_robots_position_loop(ros_env, serve):
+    serve("minimal_robot", "--controllers", "position", wait_topic=ONE_DOF_STATES)
+    serve_robot = load_robot_model(MINIMAL_GOAL.parents[1] / "urdf" / "minimal_robot.xacro")
+    theory = pendulum_theory(serve_robot, "joint1", (0.0, 0.0, -9.81), kp=10.0, kv=3.0)
+    run(ros_env, "rostopic", "pub", "-1", "/pos_cmd", "std_msgs/Float64", "--", "0.3")
+    state = run(ros_env, "rostopic", "echo", "-n", "1", "/one_DOF_robot/joint1_position_controller/state").stdout
+    assert "set_point: 0.3" in state
+    # The book's loop without compensation holds where Kp·(0.3 - q) balances gravity's torque.
+    rest = theory.equilibrium(0.3)
+    assert rest > 0.35  # gravity pulls the inverted pendulum past its command
+    assert settle_to(ros_env, rest, timeout_s=15.0) == pytest.approx(rest, abs=0.002)
