@@ -88,6 +88,20 @@ class ControllerError(JointCtlError):
     code = "controller"
 
 
+class ControllerFailed(JointCtlError):
+    """A running controller raised or produced a non-finite output: it was deactivated with its
+    chain and its joints were put in their safe action (see ``docs/architecture.md``)."""
+
+    code = "controller_failed"
+
+
+class PhysicsError(JointCtlError):
+    """The physics engine warned that the simulation is no longer valid (``field`` names the
+    warning, e.g. ``mjWARN_BADQACC``)."""
+
+    code = "physics"
+
+
 def _short_repr(value: Any, limit: int = 80) -> str:
     text = repr(value)
     if len(text) > limit:

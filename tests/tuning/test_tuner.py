@@ -15,6 +15,7 @@ from jointctl.scenario.spec import scenario_for_robot
 from jointctl.tools.response_analysis import second_order_frequency_response, second_order_theory
 from jointctl.tuning.requests import RequestError, parse_request
 from jointctl.tuning.tuner import Tuner
+from tests.faulty_controllers import FAULTY_TYPE
 
 POSITION = "joint1_position_controller"
 MOVING_MASS_KG = 1.01  # the piston (1.0 kg) and the sensor disk on it (0.01 kg)
@@ -249,3 +250,20 @@ def test_gravity_reaches_the_model_feedforward(tmp_path):
         assert feedforward.gravity[0] == pytest.approx(MOVING_MASS_KG * 5.0, rel=1e-6)
     finally:
         t.close()
+
+
+def test_a_failed_controller_is_reported_in_the_status_the_page_shows(tmp_path):
+    scenario = scenario_for_robot("one_dof", "position", [
+        f"controllers.joint1_position_controller.type={FAULTY_TYPE}",
+        "controllers.joint1_position_controller.fail_above=-0.4"])
+    t = Tuner(scenario, out_dir=tmp_path)
+    try:
+        run(t, 0.2)
+        assert "error" not in t.status()
+        ask(t, type="source", controller=POSITION, source={"type": "step", "from": -0.5, "to": -0.3, "at": 0.5})
+        run(t, 1.0)
+        status = t.status()
+    finally:
+        t.close()
+    assert "joint1_position_controller" in status["error"] and "deliberate fault" in status["error"]
+    assert "zero effort" in status["error"]

@@ -74,6 +74,11 @@ class Controller(ABC):
     def stop(self, time_s: float) -> None:
         """Called when the controller stops running."""
 
+    def fail(self, time_s: float, reason: str) -> None:
+        """Called instead of :meth:`stop` when this controller or one of its chain failed; ``reason``
+        says why (for goals or commands still pending). Must not raise."""
+        self.stop(time_s)
+
     @abstractmethod
     def update(self, time_s: float, period_s: float) -> None:
         """One control cycle at ``time_s`` for a period of ``period_s`` seconds."""

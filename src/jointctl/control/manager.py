@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +28,7 @@ import yaml
 from jointctl.control.context import ControlContext
 from jointctl.control.controller import Controller, controller_types
 from jointctl.control.params import Params
-from jointctl.errors import ConfigError, ControllerError
+from jointctl.errors import ConfigError, ControllerError, ControllerFailed
 from jointctl.hardware.interface import HardwareInterface
 from jointctl.model.robot_model import RobotModel
 
@@ -66,8 +67,34 @@ def set_dotted(tree: dict, dotted: str, value: Any, *, source: str | None, field
     node[keys[-1]] = value
 
 
+@dataclass(frozen=True)
+class ControllerFailure:
+    """A controller that failed at ``time_s`` and what was done: ``chain`` (the controllers
+    deactivated with it, itself included) and ``joints`` (put in their safe action)."""
+
+    controller: str
+    reason: str
+    time_s: float
+    chain: tuple[str, ...]
+    joints: tuple[str, ...]
+
+    def error(self) -> ControllerFailed:
+        return ControllerFailed(
+            f"failed at t = {self.time_s:.3f} s: {self.reason}; deactivated {', '.join(self.chain)}, "
+            f"joints {', '.join(self.joints) or 'none'} in their safe action (zero effort)",
+            field="controller", value=self.controller)
+
+
 class ControllerManager:
-    """Loads, starts, stops and updates controllers against one hardware interface."""
+    """Loads, starts, stops and updates controllers against one hardware interface.
+
+    Failure policy (ros2_control's ``return_type::ERROR``, made concrete): a controller whose
+    ``update`` raises, or that leaves a non-finite value in a command list, is deactivated with
+    its whole chain (:meth:`fail`); their joints get the hardware's safe action; the other
+    controllers keep running; the failure is kept in :attr:`failures` and handed to every
+    listener (:meth:`add_failure_listener`: the ROS node logs it, the page shows it, the CLI exits
+    non-zero).
+    """
 
     def __init__(self, hardware: HardwareInterface, robot: RobotModel,
                  gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)) -> None:
@@ -82,6 +109,10 @@ class ControllerManager:
         self.namespace: str | None = None
         #: Per hardware joint, the reference of the controller commanding it (NaN when none).
         self.references: list[float] = self.context.references
+        #: Every controller failure so far, in order.
+        self.failures: list[ControllerFailure] = []
+        self._failure_listeners: list[Callable[[ControllerFailure], None]] = []
+        self._safe_indices: tuple[int, ...] = ()
 
     # -- definitions -------------------------------------------------------------
     def load_file(self, path: str | Path, overrides: Mapping[str, Any] | None = None) -> str | None:
@@ -215,6 +246,91 @@ class ControllerManager:
                     self.context.acceleration_references[index] = 0.0
         self._refresh()
 
+    # -- failures (the loop thread) ---------------------------------------------------
+    def add_failure_listener(self, listener: Callable[[ControllerFailure], None]) -> None:
+        """``listener(failure)`` is called in the loop thread for every failure: it must only queue."""
+        self._failure_listeners.append(listener)
+
+    def fail(self, controller: Controller, reason: str, time_s: float) -> ControllerFailure | None:
+        """Deactivate ``controller`` with its chain and put their joints in the safe action."""
+        if controller not in self._active:
+            return None  # already deactivated (with another member of its chain)
+        chain = self._chain_of(controller)
+        for c in chain:
+            try:
+                c.fail(time_s, reason)
+            except Exception:  # noqa: BLE001  (a failing controller's clean-up must not stop the loop)
+                pass
+            self._active.remove(c)
+        joints = tuple(dict.fromkeys(j for c in chain for j in c.joints))
+        indices = tuple(self.hardware.joint_index(j) for j in joints)
+        for index in indices:
+            self.references[index] = math.nan
+            self.context.acceleration_references[index] = 0.0
+        self._safe_indices = tuple(dict.fromkeys(self._safe_indices + indices))
+        self.apply_safe_actions()
+        self._refresh()
+        failure = ControllerFailure(controller.name, reason, time_s, tuple(c.name for c in chain), joints)
+        self.failures.append(failure)
+        for listener in self._failure_listeners:
+            listener(failure)
+        return failure
+
+    def fail_update(self, call: Callable, exc: BaseException, time_s: float) -> None:
+        """An update call of :attr:`update_calls` raised ``exc``: fail its controller (for the model
+        feed-forward, every controller that uses it)."""
+        owner = getattr(call, "__self__", None)
+        reason = f"{type(exc).__name__} in update: {exc}"
+        if owner is self.context.feedforward:
+            for c in [c for c in self._active if getattr(c, "uses_model", False)]:
+                self.fail(c, f"model feed-forward {reason}", time_s)
+        elif isinstance(owner, Controller):
+            self.fail(owner, reason, time_s)
+        else:  # not a controller's: nothing to deactivate, the loop cannot go on safely
+            raise exc
+
+    def check_outputs(self, time_s: float) -> None:
+        """Fail the controllers that left a non-finite value in a command list; then make sure
+        every failed joint is in its safe action (a downstream controller updated after its
+        upstream failed, in the same cycle, may have written it)."""
+        for buf in self.hardware.command_buffers:
+            for index, value in enumerate(buf):
+                if not math.isfinite(value):
+                    joint = self.hardware.joint_names[index]
+                    owner = self.commanding(joint)
+                    if owner is None:
+                        buf[index] = 0.0 if index not in self._safe_indices else buf[index]
+                        continue
+                    top = self._chain_of(owner)[0]
+                    self.fail(owner, f"non-finite command {value!r} for joint {joint!r} "
+                                     f"(chain from {top.name!r})", time_s)
+        self.apply_safe_actions()
+
+    def apply_safe_actions(self) -> None:
+        for index in self._safe_indices:
+            if self.commanding(self.hardware.joint_names[index]) is None:
+                self.hardware.command_safe(index)
+
+    def raise_failures(self) -> None:
+        """Raise :class:`ControllerFailed` for the first failure, if any."""
+        if self.failures:
+            raise self.failures[0].error()
+
+    def _chain_of(self, controller: Controller) -> list[Controller]:
+        """``controller`` and every running controller chained to it (upstream or downstream),
+        upstream first."""
+        members = {controller}
+        grew = True
+        while grew:
+            grew = False
+            for c in self._active:
+                if c in members:
+                    continue
+                if any(c.name in m.downstream or m.name in c.downstream for m in members):
+                    members.add(c)
+                    grew = True
+        return [c for c in self._active if c in members]
+
     @staticmethod
     def _active_claim(c: Controller) -> tuple[tuple[str, str], ...]:
         return c.claimed_interfaces()
@@ -273,4 +389,4 @@ def _upstream_first(controllers: list[Controller]) -> list[Controller]:
     return ordered
 
 
-__all__ = ["ControllerManager", "read_yaml", "set_dotted"]
+__all__ = ["ControllerFailure", "ControllerManager", "read_yaml", "set_dotted"]

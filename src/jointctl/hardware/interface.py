@@ -66,6 +66,18 @@ class HardwareInterface(ABC):
             buf = self._commands[interface] = [0.0] * len(self.joint_names)
         return buf
 
+    @property
+    def command_buffers(self) -> tuple[list[float], ...]:
+        """Every command list made so far (the loop checks them for non-finite values)."""
+        return tuple(self._commands.values())
+
+    def command_safe(self, index: int) -> None:
+        """Put joint ``index`` in its safe action, for when the controller commanding it fails:
+        zero effort (the joint's own damping and friction brake it; a hold would need a controller,
+        and the one that failed cannot be trusted), zero velocity, or the measured position."""
+        for interface, buf in self._commands.items():
+            buf[index] = self.position[index] if interface == POSITION else 0.0
+
     @abstractmethod
     def read(self) -> None:
         """Refresh ``position``, ``velocity``, ``effort`` and the wrenches."""

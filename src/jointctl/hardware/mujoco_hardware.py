@@ -11,11 +11,18 @@ exerts on its parent, in the sensor link's frame, so a load resting on the
 from __future__ import annotations
 
 import numpy as np
-from mujoco import mj_step
+from mujoco import mj_step, mjtWarning
 
-from jointctl.errors import ConfigError
+from jointctl.errors import ConfigError, PhysicsError
 from jointctl.hardware.interface import EFFORT, HardwareInterface
 from jointctl.sim.world import MujocoWorld
+
+
+#: MuJoCo's warnings, by index into ``MjData.warning``.
+WARNINGS = {int(getattr(mjtWarning, n)): n for n in dir(mjtWarning) if n.startswith("mjWARN_")}
+#: Cycles between full reads of the warning counters (a reset by an unstable simulation is seen
+#: at once, by the time going back; a full contact buffer within this many cycles).
+WARNING_CHECK_CYCLES = 100
 
 
 class MujocoHardware(HardwareInterface):
@@ -51,6 +58,8 @@ class MujocoHardware(HardwareInterface):
         )
         self._model, self._data = world.model, world.data
         self._period_s, self._nstep = world.timestep_s, 1
+        self._until_warning_check = WARNING_CHECK_CYCLES
+        self._warnings_seen = [w.number for w in world.data.warning]
         self.write()  # carry the current commands into a freshly bound MjData
 
     def command_interfaces(self, joint: str) -> frozenset[str]:
@@ -95,13 +104,33 @@ class MujocoHardware(HardwareInterface):
             w[3], w[4], w[5] = -data[t], -data[t + 1], -data[t + 2]
 
     def advance(self, period_s: float) -> None:
+        """Step the physics by ``period_s``; :class:`PhysicsError` naming MuJoCo's warning when the
+        simulation became invalid (MuJoCo resets an unstable simulation: its time goes back)."""
         if period_s != self._period_s:
             self._nstep = _steps(period_s, self.world.timestep_s)
             self._period_s = period_s
-        mj_step(self._model, self._data, self._nstep)
+        d = self._data
+        before_s = d.time
+        mj_step(self._model, d, self._nstep)
+        self._until_warning_check -= 1
+        if d.time <= before_s or not self._until_warning_check:
+            self._check_warnings(before_s)
+
+    def _check_warnings(self, time_s: float) -> None:
+        self._until_warning_check = WARNING_CHECK_CYCLES
+        counts = [w.number for w in self._data.warning]
+        new = [k for k, (now, seen) in enumerate(zip(counts, self._warnings_seen)) if now > seen]
+        reset = self._data.time <= time_s
+        self._warnings_seen = counts
+        if new or reset:
+            names = ", ".join(WARNINGS.get(k, str(k)) for k in new) or "a reset of the simulation"
+            raise PhysicsError(f"MuJoCo warned at t = {time_s:.3f} s: the simulation is no longer valid "
+                               "(unstable gains or contacts, a non-finite force, or too many contacts)",
+                               field=names, value=[self._data.warning[k].lastinfo for k in new])
 
     def reset(self) -> None:
         self.world.reset()
+        self._warnings_seen = [w.number for w in self._data.warning]
         for buf in self._commands.values():
             buf[:] = [0.0] * len(buf)
         self.read()

@@ -4,7 +4,9 @@ Each cycle ``k`` runs at loop time ``t = k * period_s``:
 
 1. *inputs* ``(t)``: command sources and edge doors hand their values to controllers;
 2. ``hardware.read()``: joint state and sensors at time ``t``;
-3. every running controller's ``update(t, period_s)``;
+3. every running controller's ``update(t, period_s)``; a controller that raises, or leaves a
+   non-finite command, is deactivated with its chain and its joints get their safe action
+   (:meth:`~jointctl.control.manager.ControllerManager.fail`), within this cycle; the others run on;
 4. ``hardware.write()``: efforts (or other commands) go out;
 5. *observers* ``(t)``: recorders and publishers see the state and commands of this cycle;
 6. ``hardware.advance(period_s)``: the physics steps (or real time passes);
@@ -81,6 +83,8 @@ class ControlLoop:
         hw = self.hardware
         read, write, advance = hw.read, hw.write, hw.advance
         manager = self.manager
+        fail_update, check_outputs = manager.fail_update, manager.check_outputs
+        buffers = hw.command_buffers  # the command lists controllers were configured with
         wait = self.clock.wait_for
         realtime = self.clock.realtime
         start_cycle = self.cycle
@@ -95,8 +99,19 @@ class ControlLoop:
                 for hook in inputs:
                     hook(t)
                 read()
+                failed = False
                 for update in manager.update_calls:
-                    update(t, period)
+                    try:
+                        update(t, period)
+                    except Exception as exc:  # noqa: BLE001  (the failure policy: see ControllerManager)
+                        fail_update(update, exc, t)
+                        failed = True
+                for buf in buffers:
+                    total = sum(buf)
+                    if total - total:  # NaN: a non-finite command somewhere in the list
+                        failed = True
+                if failed:
+                    check_outputs(t)
                 write()
                 for hook in observers:
                     hook(t)

@@ -30,6 +30,9 @@ def run_scenario(
                  package_path=package_path) as session:
         analysis = check_analysis(session)
         real_time_factor = session.run()
+    # A controller that failed was deactivated and the run went on (its trace is written), but
+    # its figures would not describe the experiment: the run ends in an error instead.
+    session.manager.raise_failures()
     metrics: dict[str, Any] = {"scenario": scenario.name, "duration_s": scenario.duration_s}
     if analysis is not None:
         metrics.update(analysis(session, load_trace(session.trace_path), out, scenario.analysis))

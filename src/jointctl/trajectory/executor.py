@@ -217,11 +217,17 @@ class TrajectoryExecutor(Controller):
         self._running = True
 
     def stop(self, time_s: float) -> None:
+        self._stop(time_s, "the trajectory controller stopped")
+
+    def fail(self, time_s: float, reason: str) -> None:
+        """Its chain failed: goals end ABORTED saying why; nothing is commanded downstream."""
+        self._stop(time_s, f"the trajectory controller's chain failed: {reason}")
+
+    def _stop(self, time_s: float, why: str) -> None:
         self._running = False
         for handle in (self._pending, self.active_goal):
             if handle is not None:
-                handle._finish(GoalStatus.ABORTED, TrajectoryErrorCode.INVALID_GOAL,
-                               "the trajectory controller stopped", time_s)
+                handle._finish(GoalStatus.ABORTED, TrajectoryErrorCode.INVALID_GOAL, why, time_s)
         self._pending = self.active_goal = None
         self._plan = None
         for target, q in zip(self.targets, self.desired):

@@ -125,9 +125,14 @@ class Tuner:
         return float(command[0] if isinstance(command, tuple) else command)
 
     def status(self) -> dict[str, Any]:
-        return {"time_s": self.loop.time_s, "paused": self.paused, "epoch": self.epoch,
-                "gravity_z_m_s2": self.world.gravity_m_s2[2], "weight_dropped": self.weight_dropped,
-                "sources": {name: run.description for name, run in self.runs.items()}, "overruns": getattr(self.loop.clock, "overruns", 0)}
+        status = {"time_s": self.loop.time_s, "paused": self.paused, "epoch": self.epoch,
+                  "gravity_z_m_s2": self.world.gravity_m_s2[2], "weight_dropped": self.weight_dropped,
+                  "sources": {name: run.description for name, run in self.runs.items()},
+                  "overruns": getattr(self.loop.clock, "overruns", 0)}
+        failures = self.manager.failures
+        if failures:  # a controller failed: the page says which and what was done
+            status["error"] = f"controller {failures[-1].controller!r} {failures[-1].error().message}"
+        return status
 
     def measurement(self) -> dict[str, Any]:
         """Measurements of the most recently applied source."""
