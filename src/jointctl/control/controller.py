@@ -19,6 +19,7 @@ from typing import ClassVar
 from jointctl.control.context import ControlContext
 from jointctl.control.params import Params
 from jointctl.hardware.interface import HardwareInterface
+from jointctl.hardware.loan import HardwareLoan
 from jointctl.model.robot_model import RobotModel
 
 _TYPES: dict[str, type[Controller]] = {}
@@ -62,8 +63,12 @@ class Controller(ABC):
         """``(joint, interface)`` pairs this controller writes."""
 
     @abstractmethod
-    def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
-        """Resolve names against the hardware and the model; raise ConfigError if impossible."""
+    def configure(self, hardware: HardwareInterface | HardwareLoan, robot: RobotModel) -> None:
+        """Resolve names against the hardware and the model; raise ConfigError if impossible.
+
+        The manager passes a :class:`~jointctl.hardware.loan.HardwareLoan`: the state handles (kept
+        and indexed in the loop: they are updated in place) and the command handles of the
+        interfaces :meth:`claimed_interfaces` names; asking for others raises ConfigError."""
 
     def bind_downstream(self, controllers: dict[str, Controller]) -> None:
         """Receive the controllers named in ``downstream`` (called before start)."""

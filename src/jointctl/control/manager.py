@@ -30,6 +30,7 @@ from jointctl.control.controller import Controller, controller_types
 from jointctl.control.params import Params
 from jointctl.errors import ConfigError, ControllerError, ControllerFailed
 from jointctl.hardware.interface import HardwareInterface
+from jointctl.hardware.loan import HardwareLoan
 from jointctl.model.robot_model import RobotModel
 
 
@@ -97,9 +98,12 @@ class ControllerManager:
     """
 
     def __init__(self, hardware: HardwareInterface, robot: RobotModel,
-                 gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81)) -> None:
+                 gravity_m_s2: tuple[float, float, float] = (0.0, 0.0, -9.81),
+                 types: Mapping[str, type[Controller]] | None = None) -> None:
         self.hardware = hardware
         self.robot = robot
+        #: The controller types this manager loads, by their YAML ``type`` name.
+        self.types = dict(controller_types() if types is None else types)
         self.context = ControlContext(hardware, robot, gravity_m_s2)
         self._definitions: dict[str, Params] = {}
         self._loaded: dict[str, Controller] = {}
@@ -184,13 +188,15 @@ class ControllerManager:
                                   value=name)
         params = Params(params.values, source=params.source, field=params.field)
         type_name = params.string("type")
-        cls = controller_types().get(type_name)
+        cls = self.types.get(type_name)
         if cls is None:
-            raise params.error(f"unknown controller type (known: {', '.join(sorted(controller_types()))})",
+            raise params.error(f"unknown controller type (known: {', '.join(sorted(self.types))})",
                                "type", type_name)
         controller = cls(name, params)
         controller.context = self.context
-        controller.configure(self.hardware, self.robot)
+        # Loaned: every state handle, and the command handles of the interfaces it claims.
+        loan = HardwareLoan(self.hardware, controller.claimed_interfaces(), borrower=name, source=params.source)
+        controller.configure(loan, self.robot)
         self._loaded[name] = controller
         return controller
 

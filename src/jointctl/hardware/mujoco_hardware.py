@@ -71,10 +71,11 @@ class MujocoHardware(HardwareInterface):
     def write(self) -> None:  # replaced per instance by the fastest fitting variant
         raise NotImplementedError
 
+    # State lists are updated in place: they are the stable handles controllers were loaned.
     def _read_contiguous(self) -> None:
-        self.position = self._qpos_view.tolist()
-        self.velocity = self._qvel_view.tolist()
-        self.effort = self._force_view.tolist()
+        self.position[:] = self._qpos_view.tolist()
+        self.velocity[:] = self._qvel_view.tolist()
+        self.effort[:] = self._force_view.tolist()
         if self._sensor_slots:
             self._read_sensors()
 
@@ -83,12 +84,11 @@ class MujocoHardware(HardwareInterface):
 
     def _read_indexed(self) -> None:
         d = self.world.data
-        self.position = d.qpos[self.world.qpos_adr].tolist()
-        self.velocity = d.qvel[self.world.dof_adr].tolist()
-        effort = [0.0] * len(self.joint_names)
+        self.position[:] = d.qpos[self.world.qpos_adr].tolist()
+        self.velocity[:] = d.qvel[self.world.dof_adr].tolist()
+        effort = self.effort
         for k, act in zip(self._act_joint_idx, self._ctrl_ids):
             effort[k] = float(d.actuator_force[act])
-        self.effort = effort
         if self._sensor_slots:
             self._read_sensors()
 
