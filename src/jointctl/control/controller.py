@@ -50,6 +50,9 @@ class Controller(ABC):
     joints: tuple[str, ...] = ()
     #: Names of the controllers whose command this one writes (chaining); they run after it.
     downstream: tuple[str, ...] = ()
+    #: Whether it reads the model feed-forward (``context.feedforward``) in its update: the manager
+    #: then runs the feed-forward once per cycle, before its first user. Set by configure().
+    uses_model: bool = False
 
     def __init__(self, name: str, params: Params) -> None:
         self.name = name

@@ -288,7 +288,7 @@ class ControllerManager:
         owner = getattr(call, "__self__", None)
         reason = f"{type(exc).__name__} in update: {exc}"
         if owner is self.context.feedforward:
-            for c in [c for c in self._active if getattr(c, "uses_model", False)]:
+            for c in [c for c in self._active if c.uses_model]:
                 self.fail(c, f"model feed-forward {reason}", time_s)
         elif isinstance(owner, Controller):
             self.fail(owner, reason, time_s)
@@ -344,7 +344,7 @@ class ControllerManager:
     def _refresh(self) -> None:
         self._active = _upstream_first(self._active)
         calls = [c.update for c in self._active]
-        users = [k for k, c in enumerate(self._active) if getattr(c, "uses_model", False)]
+        users = [k for k, c in enumerate(self._active) if c.uses_model]
         if users:  # the model feed-forward runs once, just before its first user
             calls.insert(users[0], self.context.feedforward.update)
         self.update_calls = tuple(calls)

@@ -79,6 +79,8 @@ class Session:
             self.loop.add_input(object_spawner(self.world, scenario.objects))
         #: Handles of the scenario's trajectory goals, in the order they were sent.
         self.goals: list = []
+        #: The goals their executor refused when sent (the loop carries on without them).
+        self.rejected_goals: list[InvalidTrajectory] = []
         if scenario.goals:
             goals = []
             for k, g in enumerate(scenario.goals):
@@ -171,7 +173,7 @@ def _goal_maker(goal: dict, source: str, index: int, executor: TrajectoryExecuto
 
 def _goal_sender(session: Session, goals):
     """A loop input that submits each goal to its executor once loop time reaches ``at_s``;
-    a refused goal is kept as a REJECTED handle, not raised into the loop."""
+    a refused goal is kept in ``session.rejected_goals``, not raised into the loop."""
     pending = sorted(goals, key=lambda g: g[0])
 
     def send(time_s: float) -> None:
@@ -182,7 +184,6 @@ def _goal_sender(session: Session, goals):
             except InvalidTrajectory as exc:
                 session.rejected_goals.append(exc)
 
-    session.rejected_goals = []
     return send
 
 
