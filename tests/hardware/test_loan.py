@@ -9,7 +9,8 @@ from jointctl.control.manager import ControllerManager
 from jointctl.errors import ConfigError
 from jointctl.hardware.interface import EFFORT, VELOCITY
 from jointctl.hardware.loan import HardwareLoan
-from tests.control.conftest import FakeHardware, robot  # noqa: F401  (fixture)
+from jointctl.model import load_robot_model
+from tests.control.conftest import ONE_DOF_XACRO, FakeHardware
 
 
 class _Greedy(Controller):
@@ -45,7 +46,8 @@ def test_a_loan_refuses_command_handles_that_were_not_claimed():
     assert caught.value.field == "greedy" and caught.value.value == EFFORT and "claims no effort" in str(caught.value)
 
 
-def test_the_manager_refuses_at_configure_a_controller_using_handles_it_did_not_claim(robot, tmp_path):  # noqa: F811
+def test_the_manager_refuses_at_configure_a_controller_using_handles_it_did_not_claim(tmp_path):
+    robot = load_robot_model(ONE_DOF_XACRO)
     path = tmp_path / "greedy.yaml"
     path.write_text("greedy: {type: test/Greedy, interface: effort}\nhonest: {type: test/Greedy, interface: velocity}\n")
     manager = ControllerManager(FakeHardware(), robot, types={"test/Greedy": _Greedy})

@@ -48,7 +48,7 @@ def push(world: MujocoWorld, joint: str, command: float, seconds: float) -> dict
     """Command a constant effort [N or N·m] on ``joint`` for ``seconds``; return its overshoot past
     the nearer limit at the end [m or rad], its peak overshoot, final speed, applied actuator force
     and the most solver iterations any step took."""
-    m, d = world.model, world.data
+    d = world.data
     k = world.joint_names.index(joint)
     qadr, vadr, act = world.qpos_adr[k], world.dof_adr[k], world.actuator_ids[k]
     lower, upper = world.robot.joint(joint).limits.lower, world.robot.joint(joint).limits.upper

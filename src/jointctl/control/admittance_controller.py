@@ -23,7 +23,6 @@ fully stale case. Unset, a signal is read every cycle.
 
 from __future__ import annotations
 
-import math
 
 from jointctl.control.controller import Controller, register_controller
 from jointctl.control.joint_controllers import JointVelocityController
@@ -31,6 +30,7 @@ from jointctl.control.params import Params
 from jointctl.errors import ConfigError
 from jointctl.hardware.interface import HardwareInterface
 from jointctl.model.robot_model import RobotModel
+from jointctl.validate import finite_number
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -94,8 +94,8 @@ class AdmittanceController(Controller):
                                       ("damping", damping, False)):
             if value is None:
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value < 0 or (positive and value == 0):
+            number = finite_number(value)
+            if number is None or number < 0 or (positive and number == 0):
                 raise ConfigError("must be a finite number" + (" above zero" if positive else " >= 0"),
                                   source=self.name, field=name, value=value)
             changes[name] = float(value)

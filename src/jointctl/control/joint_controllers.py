@@ -13,7 +13,6 @@ commands to its velocity limit, as ros_control does.
 from __future__ import annotations
 
 import math
-import numbers
 
 from jointctl.control.context import ControlContext
 from jointctl.control.controller import Controller, register_controller
@@ -22,6 +21,7 @@ from jointctl.control.pid import Pid, PidGains
 from jointctl.errors import ConfigError, InvalidCommand
 from jointctl.hardware.interface import EFFORT, HardwareInterface
 from jointctl.model.robot_model import RobotModel
+from jointctl.validate import finite_number
 
 
 class _EffortJointController(Controller):
@@ -74,10 +74,11 @@ class _EffortJointController(Controller):
         # Fast path for the common case (a finite float); x - x is 0.0 only when x is finite.
         if type(value) is float and value - value == 0.0:
             return value
-        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        number = finite_number(value)
+        if number is None:
             raise InvalidCommand("command must be a finite number", source=self.name, field=what,
                                  value=value)
-        return float(value)
+        return number
 
 
 FEEDFORWARD_TERMS = ("gravity", "damping", "inertia")

@@ -8,11 +8,11 @@ be negative (got -5.0)``.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
 from jointctl.errors import ConfigError
+from jointctl.validate import checked_number, real_number
 
 _MISSING = object()
 
@@ -59,17 +59,9 @@ class Params:
         value = self.raw(key, default)
         if value is None and default is None:
             return None  # type: ignore[return-value]
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error("must be a number", key, value)
-        value = float(value)
-        if not math.isfinite(value):
-            raise self.error("must be finite", key, value)
-        if positive and value <= 0:
-            raise self.error("must be positive", key, value)
-        if minimum is not None and value < minimum:
-            raise self.error("must not be negative" if minimum == 0 else f"must be at least {minimum}",
-                             key, value)
-        return value
+        shown = value if real_number(value) is None else real_number(value)  # the number as read: 5 -> 5.0
+        return checked_number(value, lambda message: self.error(message, key, shown), positive=positive,
+                              minimum=minimum)
 
     def boolean(self, key: str, default: Any = _MISSING) -> bool:
         value = self.raw(key, default)

@@ -28,7 +28,6 @@ as YAML: ``--set gravity=-5``, ``--set controllers.joint1_position_controller.pi
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,6 +39,7 @@ from jointctl.control.manager import read_yaml, set_dotted
 from jointctl.errors import ConfigError
 from jointctl.paths import robots_dir, scenarios_dir
 from jointctl.sim.objects import ObjectSpec, object_from_config
+from jointctl.validate import checked_number
 
 _KEYS = {
     "name", "description", "robot", "controller_file", "controllers", "start_controllers",
@@ -159,13 +159,7 @@ class _Validator:
         return self.check_number(value, key, positive=positive)
 
     def check_number(self, value: Any, field: str, *, positive: bool = False) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error("must be a number", field, value)
-        if not math.isfinite(value):
-            raise self.error("must be finite", field, value)
-        if positive and value <= 0:
-            raise self.error("must be positive", field, value)
-        return float(value)
+        return checked_number(value, lambda message: self.error(message, field, value), positive=positive)
 
     def mapping(self, key: str) -> dict[str, Any]:
         value = self.raw.get(key) or {}

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -25,6 +24,7 @@ from jointctl.control.manager import ControllerManager, read_yaml
 from jointctl.control.pid import PidGains
 from jointctl.errors import ConfigError
 from jointctl.model.robot_model import RobotModel
+from jointctl.validate import real_number
 
 Change = Callable[[], None]
 
@@ -41,9 +41,9 @@ class GainSpec:
 
 def _check(controller: str, spec: GainSpec, value: Any) -> float:
     field = f"{controller}.{spec.name}"
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+    number = real_number(value)
+    if number is None:
         raise ConfigError("must be a number", field=field, value=value)
-    number = float(value)
     if not math.isfinite(number):
         raise ConfigError("must be a finite number", field=field, value=value)
     if spec.positive and number <= 0:

@@ -17,13 +17,12 @@ arithmetic on ``i`` and ``t`` and a list of math functions, nothing else). Every
 from __future__ import annotations
 
 import json
-import math
-import numbers
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from jointctl.errors import JointCtlError
 from jointctl.tools.command_sources import CommandSource, command_source_from_config
+from jointctl.validate import finite_number
 
 MAX_REQUEST_CHARS = 16 * 1024 * 1024
 """Longer messages are refused before parsing. Below it a long field is parsed and refused by its own
@@ -127,7 +126,7 @@ def parse_request(text: Any) -> Request:
         return SelectJoint(_string(message, "joint"))
     if kind == "gravity":
         value = message["value"]
-        if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        if finite_number(value) is None:
             raise RequestError("must be a finite number [m/s²]", field="gravity", value=value)
         return SetGravity(float(value))
     return Control(kind)

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
-from jointctl.errors import ConfigError, JointCtlError
+from jointctl.errors import ConfigError
 from jointctl.scenario.session import Session, object_spawner
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.objects import ObjectSpec, object_from_config
