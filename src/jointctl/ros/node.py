@@ -47,6 +47,7 @@ from jointctl.errors import ConfigError, InvalidCommand, JointCtlError
 from jointctl.ros.actions import TrajectoryActionServer, action_server
 from jointctl.ros.conversions import joint_state_to_ros, wrench_to_ros
 from jointctl.ros.gains import attach_gain_servers
+from jointctl.ros.world_services import attach_world_services
 from jointctl.runtime.clock import WallClockPacer
 from jointctl.scenario.session import Session
 from jointctl.trajectory.executor import TrajectoryExecutor
@@ -142,6 +143,8 @@ class RosNode:
         #: dynamic_reconfigure servers at <ns>/<controller>/pid: PID gains changed while running.
         self.gain_servers = attach_gain_servers(self)
         self._lateness_publisher(ns)
+        #: Gazebo's /gazebo world services (spawn, delete, physics properties) and model_states.
+        self.world_services = attach_world_services(self)
 
     def _command_callback(self, controller):
         def on_command(msg: Float64) -> None:

@@ -76,9 +76,12 @@ class MujocoWorld:
         if self.has_body(obj.name):
             raise ConfigError("an object or link of that name already exists", field="objects.name",
                               value=obj.name)
+        # The centre of mass at the body's origin, stated: MjSpec leaves ``ipos`` unset (NaN) and the
+        # compiler would then put it at ``pos`` in the body frame (4 m above a weight spawned at z = 4).
         body = self.spec.worldbody.add_body(
             name=obj.name, pos=list(obj.xyz), quat=list(rpy_to_quat(obj.rpy)), mass=obj.mass_kg,
-            inertia=list(obj.principal_inertia), explicitinertial=True)
+            inertia=list(obj.principal_inertia), ipos=[0.0, 0.0, 0.0], iquat=[1.0, 0.0, 0.0, 0.0],
+            explicitinertial=True)
         body.add_freejoint(name=f"{obj.name}_free")
         body.add_geom(name=f"{obj.name}_geom", type=_GEOM[obj.shape], size=obj.mujoco_size,
                       friction=[obj.friction, 0.005, 0.0001], rgba=[0.6, 0.3, 0.2, 1.0])
@@ -91,6 +94,21 @@ class MujocoWorld:
         self._resolve_addresses()
         for listener in self._rebuild_listeners:
             listener()
+
+    def remove(self, name: str) -> ObjectSpec:
+        """Take the spawned object ``name`` out of the world (MuJoCo recompiles the model); the
+        robot and the other objects keep their state. Returns the object's spec."""
+        index = next((k for k, obj in enumerate(self.spawned) if obj.name == name), None)
+        if index is None:
+            raise ConfigError("no spawned object of that name", field="objects.name", value=name)
+        self.spec.delete(self.spec.body(name))
+        self.model, self.data = self.spec.recompile(self.model, self.data)
+        mujoco.mj_forward(self.model, self.data)
+        obj = self.spawned.pop(index)
+        self._resolve_addresses()
+        for listener in self._rebuild_listeners:
+            listener()
+        return obj
 
     def remove_spawned(self) -> None:
         """Take every spawned object out of the world again (MuJoCo recompiles the model);
