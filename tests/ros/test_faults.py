@@ -232,3 +232,26 @@ def test_when_the_master_goes_away_serve_exits_with_a_clear_message(own_master):
         assert "master" in output.lower() and f"{port}" in output
     finally:
         _stop(node)
+
+
+# -- (e) a controller that fails mid-goal ----------------------------------------------------
+
+def test_a_controller_failing_mid_goal_aborts_the_goal_and_logs_an_error(ros_env, tmp_path):
+    root = Path(__file__).resolve().parents[2]
+    node = subprocess.Popen(
+        [sys.executable, "-m", "tests.faulty_controllers", "serve", "one_dof", "--controllers", "trajectory",
+         "--set", "controllers.joint1_position_controller.type=test_controllers/FaultyPositionController",
+         "--set", "controllers.joint1_position_controller.fail_above=-0.4"],
+        cwd=root, env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        wait_for_topic(ros_env, JOINT_STATES)
+        done = client(ros_env, [[3.0, [-0.2]]])
+        assert done["state"] == "ABORTED" and "chain failed" in done["text"] and "deliberate fault" in done["text"]
+        # The node goes on: joint states still flow; with zero effort the piston fell onto its lower stop.
+        time.sleep(1.0)
+        q, v = state(ros_env, tmp_path)
+        assert q == pytest.approx(-1.0, abs=0.005) and abs(v) < 0.01
+    finally:
+        _stop(node)
+    log = node.communicate(timeout=20)[0]
+    assert "jointctl: controller joint1_position_controller failed at t =" in log, log[-2000:]

@@ -143,6 +143,8 @@ class RosNode:
         #: dynamic_reconfigure servers at <ns>/<controller>/pid: PID gains changed while running.
         self.gain_servers = attach_gain_servers(self)
         self._lateness_publisher(ns)
+        manager.add_failure_listener(
+            lambda f: rospy.logerr("jointctl: controller %s %s", f.controller, f.error().message))
         #: Gazebo's /gazebo world services (spawn, delete, physics properties) and model_states.
         self.world_services = attach_world_services(self)
 
