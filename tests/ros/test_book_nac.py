@@ -1,13 +1,13 @@
-"""The book's nac_controller, as a separate node over ROS, against ``jointctl serve``: the 10 kg
-weight dropped on the velocity-controlled robot comes to rest at x_att + F/K.
+"""The book's nac_controller, as a separate node over ROS, against ``jointctl serve``: the book's
+10 kg weight, spawned through ``/gazebo/spawn_sdf_model`` onto the velocity-controlled robot under
+the book's NAC, comes to rest at x_att + F/K.
 
 The node (``book_nac_node.py``) does the book's arithmetic at 1 kHz on the 50 Hz joint states and
 the 1 kHz force topic and commands jointctl's velocity controller over its command topic, exactly
-as the chapter runs it against Gazebo. jointctl has no Gazebo-style spawn service yet, so the
-weight (the compact 10 kg cylinder of the scenarios, from z = 4 m) and g = 9.8 m/s² are given to
-``serve`` as scenario options; the weight appears at loop time ``SPAWN_AT_S``, long after the node
-has taken the piston to its unloaded rest. Only the physical outcome is asserted, never the rate
-at which the rospy loop really ran.
+as the chapter runs it against Gazebo. As the book's steps do, gravity is set to 9.8 m/s² through
+``/gazebo/set_physics_properties`` and the weight file (SDF 1.4, attribute-style cylinder) is
+spawned at z = 4 m through ``/gazebo/spawn_sdf_model``, once the node holds the empty piston at its
+unloaded rest. Only the physical outcome is asserted, never the rate at which the rospy loop ran.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -24,13 +25,13 @@ JOINT_STATES = "/one_DOF_robot/joint_states"
 NODE = str(Path(__file__).with_name("book_nac_node.py"))
 X_ATT, K_VIRT = -0.2, 1000.0           # the book's node
 G, WEIGHT, PLATE = 9.8, 10.0, 0.01     # the book's gravity; the weight and the sensor plate [kg]
-SPAWN_AT_S = 10.0                      # loop time at which the weight appears [s]
+HOLD_BEFORE_SPAWN_S = 4.0              # the node takes the empty piston to rest first [s]
 AFTER_CONTACT_S = 9.0                  # how long the node records after the weight lands [s]
 REST_WINDOW_S = 1.0                    # rest figures: means over the last second of the record
 CONTACT_N = 10.0  # sensed load that means the weight is on the disk (its weight is 98 N); the
                   # node's first catch of the empty piston shakes the 10 g plate by about 2 N
-WEIGHT_OBJECT = ("{name: weight, shape: cylinder, radius_m: 0.05, length_m: 0.2, mass_kg: 10.0, "
-                 f"xyz: [0, 0, 4.0], spawn_at_s: {SPAWN_AT_S}}}")
+WORLD_CLIENT = str(Path(__file__).with_name("test_world_services.py"))  # run as a script: a service client
+BOOK_WEIGHT = Path(__file__).resolve().parents[1] / "sim" / "data" / "cylinder_model-1_4.sdf"
 
 # Tolerance on the rest point, 0.1 mm. Statics are exact: the node's v_ideal stops changing only
 # when f_net = K (x_att - x) - B v + F = 0, so with v = 0 at rest x = x_att + F/K whatever the
@@ -50,13 +51,32 @@ def _record(path: Path) -> tuple[np.ndarray, np.ndarray, dict]:
     return np.array(record["joint_states"], dtype=float), np.array(record["force"], dtype=float), record
 
 
+def world(env, steps: list[dict]) -> list[dict]:
+    """Call the Gazebo-style world services (one rospy client process); each step's answer."""
+    result = subprocess.run([sys.executable, WORLD_CLIENT, "client", json.dumps(steps)], env=env,
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr[-2000:]
+    return json.loads(result.stdout.strip().splitlines()[-1])["steps"]
+
+
 def test_the_book_nac_node_over_ros_rests_the_weight_at_x_att_plus_f_over_k(ros_env, serve, tmp_path):
-    serve("one_dof", "--controllers", "velocity", "--set", f"gravity={-G}",
-          "--set", f"objects=[{WEIGHT_OBJECT}]", wait_topic=JOINT_STATES)
+    serve("one_dof", "--controllers", "velocity", wait_topic=JOINT_STATES)
+    gravity, = world(ros_env, [{"do": "set", "gravity": [0.0, 0.0, -G]}])
+    assert gravity["success"], gravity
     out = tmp_path / "nac_record.json"
-    node = subprocess.run([sys.executable, NODE, str(out), "--after-contact", str(AFTER_CONTACT_S),
-                           "--timeout", "120"], env=ros_env, capture_output=True, text=True, timeout=180)
-    assert node.returncode == 0, node.stderr[-2000:]
+    node = subprocess.Popen([sys.executable, NODE, str(out), "--after-contact", str(AFTER_CONTACT_S),
+                             "--timeout", "120"], env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        time.sleep(HOLD_BEFORE_SPAWN_S)
+        spawn, = world(ros_env, [{"do": "spawn", "name": "cyl_weight", "xml": BOOK_WEIGHT.read_text(),
+                                  "xyz": [0, 0, 4]}])
+        assert spawn["success"], spawn
+        _, err = node.communicate(timeout=180)
+    finally:
+        if node.poll() is None:
+            node.kill()
+    assert node.returncode == 0, err[-2000:]
     states, forces, record = _record(out)
     assert len(states) and len(forces), "the node received no joint states or no force samples"
 
