@@ -235,3 +235,32 @@ def test_mixed_actuation_and_non_contiguous_addresses() -> None:
     assert hw.velocity[0] == pytest.approx(7.0 / 1.0 * 0.001, rel=1e-9)
     assert hw.velocity[1] == pytest.approx(0.0, abs=1e-15)
     assert hw.velocity[2] == pytest.approx(-3.0 / 2.0 * 0.001, rel=1e-9)
+
+
+def test_the_simulation_door_spawns_and_reports_a_falling_body_against_free_fall(hw):
+    from jointctl.sim.objects import object_from_config
+
+    door = hw.simulation
+    assert door is not None and door.gravity_m_s2 == (0.0, 0.0, -G) and door.floor
+    weight = object_from_config({"name": "ball", "shape": "sphere", "radius_m": 0.05, "mass_kg": 1.0,
+                                 "xyz": [1.0, 1.0, 3.0]}, field="objects[0]", source=None, floor=True)
+    door.spawn(weight)
+    assert [o.name for o in door.spawned] == ["ball"] and door.has_body("ball")
+    steps = 300
+    for _ in range(steps):
+        hw.advance(0.001)
+    t = steps * 0.001
+    position, quaternion, angular, linear = door.body_state("ball")
+    # Free fall from rest, to within one 1 ms step of it (where in the step the spawn lands).
+    assert linear == pytest.approx([0.0, 0.0, -G * t], abs=G * 0.001 + 1e-9)
+    assert position[2] == pytest.approx(3.0 - 0.5 * G * t * t, abs=G * t * 0.001)
+    assert quaternion == pytest.approx([1.0, 0.0, 0.0, 0.0]) and angular == pytest.approx([0.0, 0.0, 0.0])
+    door.set_gravity((0.0, 0.0, 0.0))
+    assert door.gravity_m_s2 == (0.0, 0.0, 0.0)
+    assert door.remove("ball").name == "ball" and not door.has_body("ball")
+
+
+def test_hardware_without_a_simulation_has_no_door():
+    from tests.control.conftest import FakeHardware
+
+    assert FakeHardware().simulation is None

@@ -139,7 +139,7 @@ def test_gravity_off_removes_the_droop_and_earth_gravity_restores_it(tuner):
     assert position(tuner) == pytest.approx(-0.3 - MOVING_MASS_KG * G / 400.0, abs=2e-4)
     ask(tuner, type="gravity", value=0.0)
     run(tuner, 4.0)
-    assert tuner.world.gravity_m_s2 == (0.0, 0.0, 0.0)
+    assert tuner.sim.gravity_m_s2 == (0.0, 0.0, 0.0)
     assert tuner.manager.context.gravity_m_s2 == (0.0, 0.0, 0.0)
     assert position(tuner) == pytest.approx(-0.3, abs=2e-4)
 
@@ -163,7 +163,7 @@ def test_dropping_the_weight_loads_the_sensor_and_reset_takes_it_away(tuner):
     tuner.loop.run(cycles=1)  # the door stops the loop for the reset
     tuner.reset()
     assert tuner.epoch == 1 and tuner.loop.time_s == 0.0 and not tuner.weight_dropped
-    assert not tuner.world.has_body("weight")
+    assert not tuner.sim.has_body("weight")
     assert position(tuner) == pytest.approx(-0.5)  # the initial position (robot.yaml serve section)
     assert tuner.buffer.count == 0
     run(tuner, 4.0)  # the constant source goes on from its start: the unloaded rest again
@@ -267,3 +267,13 @@ def test_a_failed_controller_is_reported_in_the_status_the_page_shows(tmp_path):
         t.close()
     assert "joint1_position_controller" in status["error"] and "deliberate fault" in status["error"]
     assert "zero effort" in status["error"]
+
+
+def test_without_a_simulation_door_gravity_and_the_weight_are_refused_clearly(tuner):
+    tuner.sim = None  # what real hardware offers: no simulation door
+    for message, field in (({"type": "gravity", "value": 0.0}, "gravity"),
+                           ({"type": "drop_weight"}, "drop_weight")):
+        with pytest.raises(RequestError, match="needs a simulated robot") as caught:
+            ask(tuner, **message)
+        assert caught.value.field == field
+    assert tuner.status()["gravity_z_m_s2"] is None

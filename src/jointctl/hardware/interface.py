@@ -26,6 +26,65 @@ VELOCITY = "velocity"
 POSITION = "position"
 
 
+class SimulationDoor(ABC):
+    """What only a simulated robot offers: gravity, objects spawned into and removed from its world,
+    their poses, a reset. Real hardware has none (``HardwareInterface.simulation`` is None), and the
+    edges that use it (the tuning page, scenario objects, the ROS world services) say so.
+
+    Changes are made from the loop thread, at the start of a cycle (the edges queue them there).
+    Frames: the world frame, z up; poses as position [m] and quaternion (w, x, y, z).
+    """
+
+    @property
+    @abstractmethod
+    def gravity_m_s2(self) -> tuple[float, float, float]:
+        """World-frame gravity [m/s²]."""
+
+    @abstractmethod
+    def set_gravity(self, gravity_m_s2: tuple[float, float, float]) -> None:
+        """Change gravity from the next step on."""
+
+    @property
+    @abstractmethod
+    def floor(self) -> bool:
+        """Whether the world has a ground plane."""
+
+    @property
+    @abstractmethod
+    def spawned(self) -> tuple:
+        """The objects spawned so far, oldest first (:class:`~jointctl.sim.objects.ObjectSpec`)."""
+
+    @abstractmethod
+    def has_body(self, name: str) -> bool:
+        """Whether a body (a robot link or a spawned object) has that name."""
+
+    @abstractmethod
+    def spawn(self, spec) -> None:
+        """Add a rigid object (an :class:`~jointctl.sim.objects.ObjectSpec`) to the world."""
+
+    @abstractmethod
+    def remove(self, name: str):
+        """Remove the spawned object ``name``; returns its spec."""
+
+    @abstractmethod
+    def remove_spawned(self) -> None:
+        """Remove every spawned object."""
+
+    @abstractmethod
+    def body_state(self, name: str) -> tuple:
+        """(position [m], quaternion (w, x, y, z), angular velocity [rad/s], linear velocity [m/s])
+        of body ``name``'s frame, in world axes; numpy arrays, fresh copies."""
+
+    @property
+    @abstractmethod
+    def solver(self) -> dict[str, float]:
+        """The contact solver's settings: ``iterations``, ``tolerance``."""
+
+    @abstractmethod
+    def on_rebuild(self, listener) -> None:
+        """Call ``listener()`` whenever the world is rebuilt (objects added or removed)."""
+
+
 class HardwareInterface(ABC):
     """Joint state handles, command handles and wrench sensor handles of one robot."""
 
@@ -33,6 +92,8 @@ class HardwareInterface(ABC):
     position: list[float]
     velocity: list[float]
     effort: list[float]
+    #: The simulation door, on simulated hardware only.
+    simulation: SimulationDoor | None = None
 
     def __init__(self, joint_names: tuple[str, ...], sensor_names: tuple[str, ...] = ()) -> None:
         self.joint_names = tuple(joint_names)

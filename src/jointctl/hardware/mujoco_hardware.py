@@ -11,10 +11,10 @@ exerts on its parent, in the sensor link's frame, so a load resting on the
 from __future__ import annotations
 
 import numpy as np
-from mujoco import mj_step, mjtWarning
+from mujoco import mj_name2id, mj_objectVelocity, mj_step, mjtObj, mjtWarning
 
 from jointctl.errors import ConfigError, PhysicsError
-from jointctl.hardware.interface import EFFORT, HardwareInterface
+from jointctl.hardware.interface import EFFORT, HardwareInterface, SimulationDoor
 from jointctl.sim.world import MujocoWorld
 
 
@@ -25,12 +25,63 @@ WARNINGS = {int(getattr(mjtWarning, n)): n for n in dir(mjtWarning) if n.startsw
 WARNING_CHECK_CYCLES = 100
 
 
+class MujocoSimulation(SimulationDoor):
+    """The simulation door of a :class:`MujocoHardware`: its world's gravity, objects and poses."""
+
+    def __init__(self, world: MujocoWorld) -> None:
+        self._world = world
+        self._velocity = np.zeros(6)
+
+    @property
+    def gravity_m_s2(self) -> tuple[float, float, float]:
+        return self._world.gravity_m_s2
+
+    def set_gravity(self, gravity_m_s2: tuple[float, float, float]) -> None:
+        self._world.set_gravity(gravity_m_s2)
+
+    @property
+    def floor(self) -> bool:
+        return bool(self._world.settings.floor)
+
+    @property
+    def spawned(self) -> tuple:
+        return tuple(self._world.spawned)
+
+    def has_body(self, name: str) -> bool:
+        return self._world.has_body(name)
+
+    def spawn(self, spec) -> None:
+        self._world.spawn(spec)
+
+    def remove(self, name: str):
+        return self._world.remove(name)
+
+    def remove_spawned(self) -> None:
+        self._world.remove_spawned()
+
+    def body_state(self, name: str) -> tuple:
+        world = self._world
+        position, quaternion = world.body_pose(name)
+        body = mj_name2id(world.model, mjtObj.mjOBJ_BODY, name)
+        mj_objectVelocity(world.model, world.data, mjtObj.mjOBJ_BODY, body, self._velocity, 0)
+        return position, quaternion, self._velocity[:3].copy(), self._velocity[3:].copy()
+
+    @property
+    def solver(self) -> dict[str, float]:
+        opt = self._world.model.opt
+        return {"iterations": int(opt.iterations), "tolerance": float(opt.tolerance)}
+
+    def on_rebuild(self, listener) -> None:
+        self._world.on_rebuild(listener)
+
+
 class MujocoHardware(HardwareInterface):
     """Joint handles backed by one :class:`~jointctl.sim.world.MujocoWorld`."""
 
     def __init__(self, world: MujocoWorld) -> None:
         super().__init__(world.joint_names, tuple(s.name for s in world.robot.sensors))
         self.world = world
+        self.simulation = MujocoSimulation(world)
         self._effort_cmd = self.command_buffer(EFFORT)
         self._bind()
         world.on_rebuild(self._bind)

@@ -37,7 +37,6 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 import rospy
 from gazebo_msgs.msg import ModelStates, ODEPhysics
@@ -55,13 +54,13 @@ from geometry_msgs.msg import Pose, Twist, Vector3
 
 from jointctl.errors import JointCtlError
 from jointctl.sim.model_xml import UnsupportedModel, check_model_name, parse_model_xml
-from jointctl.sim.world import MujocoWorld
 
 NAMESPACE = "/gazebo"
 MODEL_STATES_RATE_HZ = 100.0
 APPLY_TIMEOUT_S = 10.0
 WORLD_FRAMES = ("", "world", "map", "/map")
 GROUND_PLANE = "ground_plane"
+WORLD_BODY = "world"  # the simulated world's own body: where the ground plane is
 
 
 class _Request:
@@ -81,7 +80,7 @@ class _Tracked:
     """A model listed in model_states: its body, and its model frame in the body frame."""
 
     name: str
-    body_id: int
+    body: str
     frame_pos: np.ndarray
     frame_quat: np.ndarray
 
@@ -95,8 +94,8 @@ class WorldServices:
         self.loop = session.loop
         self.manager = session.manager
         self.robot = session.robot
-        world = getattr(session.hardware, "world", None)
-        self.world: MujocoWorld | None = world if isinstance(world, MujocoWorld) else None
+        #: The hardware's simulation door (None on real hardware: every service says so).
+        self.sim = session.hardware.simulation
         self.hardware_name = type(session.hardware).__name__
         # Names taken: the robot's model name and the objects the scenario spawns by itself later.
         self.reserved = {self.robot.name, GROUND_PLANE, *(o.name for o in session.scenario.objects)}
@@ -113,14 +112,13 @@ class WorldServices:
             rospy.Service(f"{ns}/set_physics_properties", SetPhysicsProperties, self._set_physics),
         ]
         self.loop.add_input(self._cycle_start)
-        if self.world is not None:
+        if self.sim is not None:
             self._base = self._base_body()
             self._track()
-            self.world.on_rebuild(self._track)
+            self.sim.on_rebuild(self._track)
             self._publisher = rospy.Publisher(f"{ns}/model_states", ModelStates, queue_size=1)
             self._every = max(1, round(1.0 / (MODEL_STATES_RATE_HZ * self.loop.period_s)))
             self._count = 0
-            self._velocity = np.zeros(6)
             self.loop.add_observer(self._publish_states)
 
     # -- the door (loop thread) ----------------------------------------------------------------
@@ -156,7 +154,7 @@ class WorldServices:
 
     # -- spawn and delete ----------------------------------------------------------------------
     def _spawn(self, req) -> SpawnModelResponse:
-        if self.world is None:
+        if self.sim is None:
             return SpawnModelResponse(False, "SpawnModel: " + self._not_simulated())
         try:
             name = check_model_name(req.model_name)
@@ -167,7 +165,7 @@ class WorldServices:
                                        value=req.reference_frame)
             p, q = req.initial_pose.position, req.initial_pose.orientation
             model = parse_model_xml(req.model_xml, name=name, position=(p.x, p.y, p.z),
-                                    orientation=(q.w, q.x, q.y, q.z), floor=self.world.settings.floor)
+                                    orientation=(q.w, q.x, q.y, q.z), floor=self.sim.floor)
         except JointCtlError as exc:
             rospy.logwarn("jointctl: refused to spawn %r: %s", req.model_name, exc)
             return SpawnModelResponse(False, f"SpawnModel: refused, nothing spawned: {exc}")
@@ -177,7 +175,7 @@ class WorldServices:
             self._check_free(name)
             self._frames[name] = (np.array(model.frame_xyz), np.array(model.frame_quat))
             try:
-                self.world.spawn(model.spec)
+                self.sim.spawn(model.spec)
             except JointCtlError:
                 del self._frames[name]
                 raise
@@ -192,14 +190,14 @@ class WorldServices:
         return SpawnModelResponse(ok, message)
 
     def _check_free(self, name: str) -> None:
-        taken = (name in self.reserved or any(o.name == name for o in self.world.spawned)
+        taken = (name in self.reserved or any(o.name == name for o in self.sim.spawned)
                  or self.robot.has_link(name))
         if taken:
             raise UnsupportedModel("a model (or a link of the robot) of that name already exists",
                                    field="model_name", value=name)
 
     def _delete(self, req) -> DeleteModelResponse:
-        if self.world is None:
+        if self.sim is None:
             return DeleteModelResponse(False, "DeleteModel: " + self._not_simulated())
         name = req.model_name
         if name in (self.robot.name, GROUND_PLANE):
@@ -207,9 +205,9 @@ class WorldServices:
                                               "deleted (only spawned models can)")
 
         def apply(time_s: float) -> str:
-            if not any(o.name == name for o in self.world.spawned):
+            if not any(o.name == name for o in self.sim.spawned):
                 raise UnsupportedModel("model does not exist", field="model_name", value=name)
-            self.world.remove(name)
+            self.sim.remove(name)
             self._frames.pop(name, None)
             return f"DeleteModel: deleted {name!r} at loop time {time_s:.3f} s"
 
@@ -221,13 +219,13 @@ class WorldServices:
     def _physics_snapshot(self) -> dict:
         """What get_physics_properties reports; taken here and by the loop after each change
         (never read from MuJoCo on a rospy thread)."""
-        if self.world is None:
+        if self.sim is None:
             return {}
-        opt = self.world.model.opt
+        solver = self.sim.solver
         return {
-            "gravity": tuple(float(g) for g in opt.gravity),
-            "ode": ODEPhysics(auto_disable_bodies=False, sor_pgs_precon_iters=0, sor_pgs_iters=int(opt.iterations),
-                              sor_pgs_w=0.0, sor_pgs_rms_error_tol=float(opt.tolerance), contact_surface_layer=0.0,
+            "gravity": self.sim.gravity_m_s2,
+            "ode": ODEPhysics(auto_disable_bodies=False, sor_pgs_precon_iters=0, sor_pgs_iters=int(solver["iterations"]),
+                              sor_pgs_w=0.0, sor_pgs_rms_error_tol=float(solver["tolerance"]), contact_surface_layer=0.0,
                               contact_max_correcting_vel=0.0, cfm=0.0, erp=0.0, max_contacts=0),
         }
 
@@ -237,7 +235,7 @@ class WorldServices:
         return period, self.node.speed / period
 
     def _get_physics(self, req) -> GetPhysicsPropertiesResponse:
-        if self.world is None:
+        if self.sim is None:
             return GetPhysicsPropertiesResponse(success=False,
                                                 status_message="GetPhysicsProperties: " + self._not_simulated())
         snapshot = self._physics
@@ -248,7 +246,7 @@ class WorldServices:
             status_message="GetPhysicsProperties: jointctl's MuJoCo world (ode_config: MuJoCo's nearest settings)")
 
     def _set_physics(self, req) -> SetPhysicsPropertiesResponse:
-        if self.world is None:
+        if self.sim is None:
             return SetPhysicsPropertiesResponse(False, "SetPhysicsProperties: " + self._not_simulated())
         time_step, rate = self._rates()
         for field, asked, have, unit in (("time_step", req.time_step, time_step, "s"),
@@ -268,7 +266,7 @@ class WorldServices:
             ode_note = "; ode_config not applied (jointctl runs MuJoCo, not ODE)"
 
         def apply(time_s: float) -> str:
-            self.world.set_gravity(gravity)
+            self.sim.set_gravity(gravity)
             self.manager.context.set_gravity(gravity)
             self._physics = self._physics_snapshot()
             return (f"SetPhysicsProperties: gravity ({gravity[0]:g}, {gravity[1]:g}, {gravity[2]:g}) m/s^2 "
@@ -281,55 +279,60 @@ class WorldServices:
     # -- model states (loop thread) ------------------------------------------------------------
     def _base_body(self) -> str | None:
         """The robot's base: its root link, or the root's first child when the root is the world."""
-        robot, model = self.robot, self.world.model
+        robot = self.robot
         root = robot.root_link
         candidates = [root] + [j.child for j in robot.joints if j.parent == root]
         for link in candidates:
-            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, link) > 0:
+            if link != WORLD_BODY and self.sim.has_body(link):
                 return link
         return None
 
     def _track(self) -> None:
-        """Resolve the listed models' bodies (at start and whenever the world is rebuilt)."""
-        model = self.world.model
+        """The listed models' bodies (at start and whenever the world is rebuilt)."""
         identity = (np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]))
         tracked = []
-        if self.world.settings.floor:
-            tracked.append(_Tracked(GROUND_PLANE, 0, *identity))
+        if self.sim.floor:
+            tracked.append(_Tracked(GROUND_PLANE, WORLD_BODY, *identity))
         if self._base is not None:
-            tracked.append(_Tracked(self.robot.name, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, self._base),
-                                    *identity))
-        for obj in self.world.spawned:
-            body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, obj.name)
-            tracked.append(_Tracked(obj.name, body, *self._frames.get(obj.name, identity)))
+            tracked.append(_Tracked(self.robot.name, self._base, *identity))
+        for obj in self.sim.spawned:
+            tracked.append(_Tracked(obj.name, obj.name, *self._frames.get(obj.name, identity)))
         self._tracked = tuple(tracked)
 
     def _publish_states(self, time_s: float) -> None:
         self._count += 1
         if self._count % self._every or not self._publisher.get_num_connections():
             return
-        world = self.world
-        model, data = world.model, world.data
         msg = ModelStates()
-        pos, quat, velocity = np.zeros(3), np.zeros(4), self._velocity
         for item in self._tracked:
-            # The model frame: the body's pose composed with the model frame's pose in the body.
-            mujoco.mju_rotVecQuat(pos, item.frame_pos, data.xquat[item.body_id])
-            pos += data.xpos[item.body_id]
-            mujoco.mju_mulQuat(quat, data.xquat[item.body_id], item.frame_quat)
-            # Velocity in world axes at the body's origin [angular; linear], then at the model frame.
-            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, item.body_id, velocity, 0)
-            linear = velocity[3:] + np.cross(velocity[:3], pos - data.xpos[item.body_id])
+            body_pos, body_quat, angular, body_linear = self.sim.body_state(item.body)
+            # The model frame: the body's pose composed with the model frame's pose in the body;
+            # its velocity in world axes, moved from the body's origin to the model frame.
+            offset = _rotate(body_quat, item.frame_pos)
+            pos = body_pos + offset
+            quat = _multiply(body_quat, item.frame_quat)
+            linear = body_linear + np.cross(angular, offset)
             pose = Pose()
             pose.position.x, pose.position.y, pose.position.z = pos
             pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z = quat
             twist = Twist()
             twist.linear.x, twist.linear.y, twist.linear.z = linear
-            twist.angular.x, twist.angular.y, twist.angular.z = velocity[:3]
+            twist.angular.x, twist.angular.y, twist.angular.z = angular
             msg.name.append(item.name)
             msg.pose.append(pose)
             msg.twist.append(twist)
         self._publisher.publish(msg)
+
+
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``v`` rotated by the unit quaternion ``q`` (w, x, y, z)."""
+    w, u = q[0], q[1:]
+    return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)
+
+
+def _multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The quaternion product ``a·b`` (w, x, y, z)."""
+    return np.array([a[0] * b[0] - a[1:] @ b[1:], *(a[0] * b[1:] + b[0] * a[1:] + np.cross(a[1:], b[1:]))])
 
 
 def attach_world_services(node) -> WorldServices:

@@ -21,6 +21,7 @@ from jointctl.runtime.clock import SimulatedClock, WallClockPacer
 from jointctl.runtime.loop import ControlLoop
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.mjcf_builder import WorldSettings
+from jointctl.hardware.interface import SimulationDoor
 from jointctl.sim.world import MujocoWorld
 from jointctl.tools.command_sources import CommandSource, command_source_from_config
 from jointctl.tools.recorder import TraceRecorder
@@ -76,7 +77,7 @@ class Session:
         for name, source in self.sources.items():
             self.loop.add_input(_feed(source, self.manager.controller(name)))
         if scenario.objects:
-            self.loop.add_input(object_spawner(self.world, scenario.objects))
+            self.loop.add_input(object_spawner(self.hardware.simulation, scenario.objects))
         #: Handles of the scenario's trajectory goals, in the order they were sent.
         self.goals: list = []
         #: The goals their executor refused when sent (the loop carries on without them).
@@ -120,13 +121,14 @@ class Session:
         self.close()
 
 
-def object_spawner(world: MujocoWorld, objects):
-    """A loop input that adds each object to the world once loop time reaches its spawn time."""
+def object_spawner(simulation: SimulationDoor, objects):
+    """A loop input that adds each object through the hardware's simulation door once loop time
+    reaches its spawn time."""
     pending = sorted(objects, key=lambda o: o.spawn_at_s)
 
     def spawn(time_s: float) -> None:
         while pending and time_s + 1e-9 >= pending[0].spawn_at_s:
-            world.spawn(pending.pop(0))
+            simulation.spawn(pending.pop(0))
 
     return spawn
 

@@ -55,8 +55,9 @@ class Tuner:
         self.scenario = scenario
         self.out_dir = Path(out_dir)
         session = self.session
-        self.loop, self.world, self.hardware, self.manager = session.loop, session.world, session.hardware, \
-            session.manager
+        self.loop, self.hardware, self.manager = session.loop, session.hardware, session.manager
+        #: The hardware's simulation door: gravity, the drop weight and scenario objects need it.
+        self.sim = session.hardware.simulation
         self.period_s = self.loop.period_s
         self.groups: dict[str, GainGroup] = {g.name: g for g in gain_groups(self.manager, session.robot)}
         self.commandable = {c.name: c for c in self.manager.active
@@ -70,7 +71,7 @@ class Tuner:
                                                   source=str(scenario.robot.folder / "robot.yaml"),
                                                   floor=scenario.floor)
         for k, obj in enumerate((*scenario.objects, *([self.drop_object] if self.drop_object else []))):
-            if self.world.has_body(obj.name):
+            if self.sim is not None and self.sim.has_body(obj.name):
                 raise ConfigError("a link of the robot already has that name", source=scenario.source,
                                   field=f"objects[{k}].name", value=obj.name)
         self.default_joint = self._default_joint(tuning.get("joint"), str(scenario.robot.folder / "robot.yaml"))
@@ -78,7 +79,7 @@ class Tuner:
         self._feeds: dict[str, _Feed] = {}
         self.runs: dict[str, SourceRun] = {}
         self.last_commanded: str | None = None
-        self._spawn_objects = object_spawner(self.world, scenario.objects)  # replaced on reset: they come again
+        self._spawn_objects = self._objects_spawner()  # replaced on reset: they come again
         self.weight_dropped = False
         self.paused = False
         self.reset_wanted = False
@@ -116,7 +117,7 @@ class Tuner:
                              "command": self._command_now(c)} for c in self.commandable.values()],
             "gains": [g.describe() for g in self.groups.values()],
             "can_drop": self.drop_object is not None,
-            "gravity_z_m_s2": self.world.gravity_m_s2[2],
+            "gravity_z_m_s2": self._gravity_z(),
             "controller_file": str(self.scenario.controller_file),
         }
 
@@ -126,7 +127,7 @@ class Tuner:
 
     def status(self) -> dict[str, Any]:
         status = {"time_s": self.loop.time_s, "paused": self.paused, "epoch": self.epoch,
-                  "gravity_z_m_s2": self.world.gravity_m_s2[2], "weight_dropped": self.weight_dropped,
+                  "gravity_z_m_s2": self._gravity_z(), "weight_dropped": self.weight_dropped,
                   "sources": {name: run.description for name, run in self.runs.items()},
                   "overruns": getattr(self.loop.clock, "overruns", 0)}
         failures = self.manager.failures
@@ -169,6 +170,7 @@ class Tuner:
             self.joint_index(request.joint)
             return {"type": "ok", "request": "joint", "joint": request.joint}
         if isinstance(request, SetGravity):
+            self._require_simulation("changing gravity", "gravity")
             gravity = (0.0, 0.0, request.z_m_s2)
             self._pending.append(lambda t: self._set_gravity(gravity))
             return {"type": "ok", "request": "gravity", "value": request.z_m_s2}
@@ -196,8 +198,22 @@ class Tuner:
         self._pending.append(apply)
 
     def _set_gravity(self, gravity: tuple[float, float, float]) -> None:
-        self.world.set_gravity(gravity)
+        self.sim.set_gravity(gravity)
         self.manager.context.set_gravity(gravity)
+
+    def _gravity_z(self) -> float | None:
+        """Gravity along z [m/s²] where the hardware is simulated; None on a real robot."""
+        return self.sim.gravity_m_s2[2] if self.sim is not None else None
+
+    def _require_simulation(self, what: str, field: str) -> None:
+        if self.sim is None:
+            raise RequestError(f"{what} needs a simulated robot; this hardware "
+                               f"({type(self.hardware).__name__}) is real", field=field, value=what)
+
+    def _objects_spawner(self):
+        if self.sim is None or not self.scenario.objects:
+            return lambda time_s: None
+        return object_spawner(self.sim, self.scenario.objects)
 
     def _control(self, action: str) -> dict[str, Any]:
         if action == "pause":
@@ -214,8 +230,9 @@ class Tuner:
             if self.weight_dropped:
                 raise RequestError("the weight is already in the world: reset first", field="drop_weight",
                                    value=obj.name)
+            self._require_simulation("dropping a weight", "drop_weight")
             self.weight_dropped = True
-            self._pending.append(lambda t: self.world.spawn(obj))
+            self._pending.append(lambda t: self.sim.spawn(obj))
         elif action == "save_gains":
             return self.save_gains()
         return {"type": "ok", "request": action}
@@ -252,14 +269,15 @@ class Tuner:
         """Back to the initial state, the loop stopped: physics, controllers, loop time 0, spawned
         objects removed, every source restarted. Gains and gravity stay as set."""
         self.apply_pending()
-        self.world.remove_spawned()
+        if self.sim is not None:
+            self.sim.remove_spawned()
         self.hardware.reset()
         names = [c.name for c in self.manager.active]
         self.manager.stop(names)
         self.manager.start(names)
         self.loop.cycle = 0
         self.buffer.clear()
-        self._spawn_objects = object_spawner(self.world, self.scenario.objects)
+        self._spawn_objects = self._objects_spawner()
         self.weight_dropped = False
         for name, feed in self._feeds.items():
             feed.source.reset()

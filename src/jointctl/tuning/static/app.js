@@ -77,7 +77,8 @@
     status(m) {
       page.status = m;
       setState(m.paused ? "paused" : "running");
-      $("clock").textContent = "t = " + m.time_s.toFixed(3) + " s · gravity " + m.gravity_z_m_s2 + " m/s²" +
+      $("clock").textContent = "t = " + m.time_s.toFixed(3) + " s · " +
+        (m.gravity_z_m_s2 === null ? "real hardware (no gravity or weight to set)" : "gravity " + m.gravity_z_m_s2 + " m/s²") +
         (m.weight_dropped ? " · weight dropped" : "") + (m.overruns ? " · late cycles " + m.overruns : "");
       const sources = Object.entries(m.sources).map(([c, s]) => c + ": " + describeSource(s));
       $("source-now").textContent = sources.length ? sources.join("; ") : "no source: controllers hold";
