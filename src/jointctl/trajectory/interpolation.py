@@ -4,9 +4,13 @@ Times are in seconds; positions in rad (or m), velocities per second,
 accelerations per second squared. An :class:`Interpolant` stores one
 polynomial per segment and joint as coefficients in powers of ``t - t_k``
 (array ``(segments, joints, 6)``), so sampling any number of times is a
-``searchsorted`` plus a Horner evaluation over the 6 coefficients, with no
-Python loop over times or joints. Evaluating a scipy spline every control
-step is slow; precompute a block of samples with :func:`sample_block` instead.
+Horner evaluation over the coefficients its kind uses, vectorised over times
+and joints, with no Python loop over either. Increasing times (a control
+loop's) need no per-sample search: each segment's coefficients are repeated
+over its run of samples. That samples position, velocity and acceleration
+about twice as fast as scipy's ``CubicHermiteSpline`` evaluating the same
+three (``make bench``). A control loop samples a block of cycles at once with
+:func:`sample_block` rather than one call per cycle.
 
 Validation of user trajectories (with proper error codes) happens upstream;
 the ``ValueError`` raised here is a programming guard.
@@ -62,8 +66,7 @@ class Interpolant:
     :func:`build_interpolant`.
     """
 
-    __slots__ = ("kind", "times_s", "positions", "velocities", "accelerations",
-                 "coefficients", "_d1", "_d2")
+    __slots__ = ("kind", "times_s", "positions", "velocities", "accelerations", "coefficients", "_table")
 
     def __init__(self, kind: Kind, times_s: FloatArray, positions: FloatArray,
                  velocities: FloatArray, accelerations: FloatArray,
@@ -74,10 +77,12 @@ class Interpolant:
         self.velocities = velocities
         self.accelerations = accelerations
         self.coefficients = coefficients
-        powers = np.arange(1, _N_COEFFS, dtype=float)
-        self._d1 = coefficients[..., 1:] * powers                 # (S, J, 5) velocity coefficients
-        self._d2 = self._d1[..., 1:] * powers[:-1]                # (S, J, 4) acceleration coefficients
-        for array in (times_s, positions, velocities, accelerations, coefficients, self._d1, self._d2):
+        # The coefficients the kind uses, as rows (coefficient i of joint j at row i·J + j) and one
+        # column per segment: a run of samples in one segment repeats a column (see _evaluate).
+        order = _ORDER[kind]
+        self._table = np.ascontiguousarray(
+            coefficients[..., :order].transpose(2, 1, 0).reshape(order * positions.shape[1], -1))
+        for array in (times_s, positions, velocities, accelerations, coefficients, self._table):
             array.flags.writeable = False
 
     @property
@@ -97,74 +102,130 @@ class Interpolant:
     def sample(self, t: float | Any) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Positions, velocities and accelerations at time(s) ``t`` (s).
 
-        A scalar ``t`` gives three arrays (J,); an array (T,) gives (T, J).
-        Before ``times_s[0]`` the result is the first knot's position with
-        zero velocity and acceleration; after ``times_s[-1]`` the last knot's
-        position with zero velocity and acceleration. At a knot time the
-        position is the knot's exactly, and velocity and acceleration are the
-        knot's ``velocities``/``accelerations`` rows. A scalar call costs about
-        15 µs; in a control loop precompute blocks with :func:`sample_block`
-        (about 0.3 µs per sample for 7 joints).
+        A scalar ``t`` gives three arrays (J,); an array (T,) gives (T, J) (views
+        of one (3, J, T) array). Before ``times_s[0]`` the result is the first
+        knot's position with zero velocity and acceleration; after
+        ``times_s[-1]`` the last knot's position with zero velocity and
+        acceleration. At a knot time the position is the knot's exactly, and
+        velocity and acceleration are the knot's ``velocities``/``accelerations``
+        rows. Increasing times (a control loop's) are the fast case: each
+        segment's coefficients are repeated over its run of samples instead of
+        looked up sample by sample; any order gives the same values.
         """
         try:
             t_arr = np.asarray(t, dtype=float)
         except (TypeError, ValueError) as exc:
             raise ValueError(f"t is not numeric: {exc}") from None
-        if t_arr.ndim == 0:
-            return self._sample_scalar(float(t_arr))
-        if t_arr.ndim != 1:
+        if t_arr.ndim > 1:
             raise ValueError(f"t must be a scalar or a 1-D array, got shape {t_arr.shape}")
         if np.isnan(t_arr).any():
             raise ValueError("t contains NaN")
-        n_joints = self.positions.shape[1]
-        pos = np.empty((t_arr.size, n_joints))
-        vel = np.zeros((t_arr.size, n_joints))
-        acc = np.zeros((t_arr.size, n_joints))
+        if t_arr.ndim == 0:
+            out = self._evaluate(t_arr.reshape(1))
+            return out[0, :, 0].copy(), out[1, :, 0].copy(), out[2, :, 0].copy()
+        out = self._evaluate(t_arr)
+        return out[0].T, out[1].T, out[2].T
 
-        t_first, t_last = self.times_s[0], self.times_s[-1]
-        before = t_arr < t_first
-        after = t_arr >= t_last
-        inside = ~(before | after)
-        if inside.any():
-            t_in = t_arr[inside]
-            seg = np.searchsorted(self.times_s, t_in, side="right") - 1
-            np.clip(seg, 0, len(self.times_s) - 2, out=seg)
-            tau = (t_in - self.times_s[seg])[:, None]             # (n, 1)
-            pos[inside] = _horner(self.coefficients[seg], tau)
-            vel[inside] = _horner(self._d1[seg], tau)
-            acc[inside] = _horner(self._d2[seg], tau)
-        pos[before] = self.positions[0]
-        pos[after] = self.positions[-1]
-        at_end = t_arr == t_last
-        vel[at_end] = self.velocities[-1]
-        acc[at_end] = self.accelerations[-1]
-        return pos, vel, acc
-
-    def _sample_scalar(self, t: float) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """:meth:`sample` for one time, without the masking overhead (same results)."""
-        if t != t:
-            raise ValueError("t contains NaN")
+    def _evaluate(self, t: FloatArray) -> FloatArray:
+        """Positions, velocities, accelerations (3, J, T) at the times ``t`` (T,), none NaN."""
         times = self.times_s
-        zeros = np.zeros(self.positions.shape[1])
-        if t < times[0]:
-            return self.positions[0].copy(), zeros, zeros.copy()
-        if t >= times[-1]:
-            if t == times[-1]:
-                return self.positions[-1].copy(), self.velocities[-1].copy(), self.accelerations[-1].copy()
-            return self.positions[-1].copy(), zeros, zeros.copy()
-        seg = min(int(np.searchsorted(times, t, side="right")) - 1, len(times) - 2)
-        tau = t - times[seg]
-        return (_horner(self.coefficients[seg], tau), _horner(self._d1[seg], tau),
-                _horner(self._d2[seg], tau))
+        n_joints, n_t = self.positions.shape[1], t.size
+        out = np.empty((3, n_joints, n_t))
+        first, last = times[0], times[-1]
+        if n_t > 1 and bool((t[1:] >= t[:-1]).all()):
+            lo = int(np.searchsorted(t, first, side="left"))   # t[:lo] before the first knot
+            hi = int(np.searchsorted(t, last, side="left"))    # t[hi:] at or after the last knot
+            if lo < hi:
+                # Samples lo..hi-1 fall into the segments in order: segment s holds a run of
+                # samples, bounds[s] to bounds[s + 1] - 1 (bounds[0] = lo, bounds[-1] = hi).
+                bounds = np.searchsorted(t, times, side="left")
+                _fill(self._table, times, t, out, lo, hi, bounds)
+            before, after = slice(0, lo), slice(hi, n_t)
+            at_end = slice(hi, int(np.searchsorted(t, last, side="right")))
+        else:
+            before, after = t < first, t >= last
+            at_end = t == last
+            inside = ~(before | after)
+            if inside.any():
+                _fill(self._table, times, t, out, 0, n_t, None)
+        out[0][:, before] = self.positions[0][:, None]
+        out[0][:, after] = self.positions[-1][:, None]
+        out[1:, :, before] = 0.0
+        out[1:, :, after] = 0.0
+        out[1][:, at_end] = self.velocities[-1][:, None]
+        out[2][:, at_end] = self.accelerations[-1][:, None]
+        return out
 
 
-def _horner(coefficients: FloatArray, tau: FloatArray | float) -> FloatArray:
-    """Evaluate ``sum_i c[..., i] * tau**i`` for c (n, J, m) and tau (n, 1), or c (J, m) and a float."""
-    result = coefficients[..., -1].copy()
-    for i in range(coefficients.shape[-1] - 2, -1, -1):
-        result *= tau
-        result += coefficients[..., i]
-    return result
+#: Coefficients each kind uses (the others are zero).
+_ORDER = {"linear": 2, "cubic": 4, "quintic": 6}
+#: Samples evaluated at a time (the work arrays stay in the cache).
+_CHUNK = 4096
+
+
+def _fill(table: FloatArray, times: FloatArray, t: FloatArray, out: FloatArray, lo: int, hi: int,
+          bounds: Any) -> None:
+    """Evaluate the samples ``t[lo:hi]`` into ``out[:, :, lo:hi]`` (positions, velocities,
+    accelerations), a chunk at a time. With ``bounds`` (K,) the times are increasing and segment
+    ``s`` holds samples ``bounds[s]..bounds[s+1]-1``; without, each sample's segment is searched.
+
+    Horner's scheme in ``tau = t - times[segment]``; the derivatives' coefficients are the
+    position coefficients times their powers (``c[i+1]·(i+1)``, then that times ``i+1`` again).
+    Samples outside ``[times[0], times[-1])`` get the first or last segment's polynomial (the
+    caller overwrites them).
+    """
+    rows = table.shape[0]
+    n_joints = out.shape[1]
+    order = rows // n_joints
+    n_segments = times.size - 1
+    size = min(_CHUNK, hi - lo)
+    d1 = np.empty(((order - 2) * n_joints, size))   # velocity coefficients 2c2, 3c3, ...
+    d2 = np.empty((max(order - 3, 0) * n_joints, size))   # acceleration coefficients beyond d1[1]
+    tau_all = np.empty(size)
+    if bounds is None:
+        seg_all = np.searchsorted(times, t[lo:hi], side="right") - 1
+        np.clip(seg_all, 0, n_segments - 1, out=seg_all)
+        work = np.empty((rows, size))
+    for a in range(lo, hi, _CHUNK):
+        b = min(a + _CHUNK, hi)
+        m = b - a
+        tau = tau_all[:m]
+        if bounds is None:
+            seg = seg_all[a - lo:b - lo]
+            g = work[:, :m]
+            np.take(table, seg, axis=1, out=g)
+            np.take(times, seg, out=tau)
+        else:  # repeat each segment's column over its run of samples (no per-sample look-up)
+            s0 = int(np.searchsorted(bounds, a, side="right")) - 1
+            s1 = int(np.searchsorted(bounds, b - 1, side="right")) - 1
+            counts = np.minimum(bounds[s0 + 1:s1 + 2], b) - np.maximum(bounds[s0:s1 + 1], a)
+            g = np.repeat(table[:, s0:s1 + 1], counts, axis=1)
+            tau[...] = np.repeat(times[s0:s1 + 1], counts)
+        np.subtract(t[a:b], tau, out=tau)
+        c = [g[i * n_joints:(i + 1) * n_joints] for i in range(order)]
+        p, v, acc = out[0, :, a:b], out[1, :, a:b], out[2, :, a:b]
+        _horner(c, tau, p)
+        if order == 2:  # linear: the slope, no acceleration
+            v[...] = c[1]
+            acc[...] = 0.0
+            continue
+        v_coeffs = [c[1]] + [d1[(i - 1) * n_joints:i * n_joints, :m] for i in range(1, order - 1)]
+        for i in range(1, order - 1):
+            np.multiply(c[i + 1], float(i + 1), out=v_coeffs[i])
+        a_coeffs = [v_coeffs[1]] + [d2[(i - 1) * n_joints:i * n_joints, :m] for i in range(1, order - 2)]
+        for i in range(1, order - 2):
+            np.multiply(v_coeffs[i + 1], float(i + 1), out=a_coeffs[i])
+        _horner(v_coeffs, tau, v)
+        _horner(a_coeffs, tau, acc)
+
+
+def _horner(coefficients: list[FloatArray], tau: FloatArray, out: FloatArray) -> None:
+    """``out = sum_i coefficients[i] * tau**i`` by Horner's scheme (each coefficient (J, n), tau (n,))."""
+    np.multiply(coefficients[-1], tau, out=out)
+    for c in coefficients[-2:0:-1]:
+        out += c
+        out *= tau
+    out += coefficients[0]
 
 
 def _segment_coefficients(kind: Kind, h: FloatArray, p0: FloatArray, p1: FloatArray,
