@@ -13,8 +13,9 @@ from __future__ import annotations
 import numpy as np
 from mujoco import mj_name2id, mj_objectVelocity, mj_step, mjtObj, mjtWarning
 
-from jointctl.errors import ConfigError, PhysicsError
+from jointctl.errors import PhysicsError
 from jointctl.hardware.interface import EFFORT, HardwareInterface, SimulationDoor
+from jointctl.sim.steps import physics_steps
 from jointctl.sim.world import MujocoWorld
 
 
@@ -158,7 +159,7 @@ class MujocoHardware(HardwareInterface):
         """Step the physics by ``period_s``; :class:`PhysicsError` naming MuJoCo's warning when the
         simulation became invalid (MuJoCo resets an unstable simulation: its time goes back)."""
         if period_s != self._period_s:
-            self._nstep = _steps(period_s, self.world.timestep_s)
+            self._nstep = physics_steps(period_s, self.world.timestep_s)
             self._period_s = period_s
         d = self._data
         before_s = d.time
@@ -185,13 +186,3 @@ class MujocoHardware(HardwareInterface):
         for buf in self._commands.values():
             buf[:] = [0.0] * len(buf)
         self.read()
-
-
-def _steps(period_s: float, timestep_s: float) -> int:
-    steps = round(period_s / timestep_s)
-    if steps < 1 or abs(steps * timestep_s - period_s) > 1e-9 * max(1.0, period_s):
-        raise ConfigError(
-            f"the control period must be a whole number of physics steps of {timestep_s} s",
-            field="period_s", value=period_s,
-        )
-    return steps

@@ -39,6 +39,7 @@ from jointctl.control.manager import read_yaml, set_dotted
 from jointctl.errors import ConfigError
 from jointctl.paths import robots_dir, scenarios_dir
 from jointctl.sim.objects import ObjectSpec, object_from_config
+from jointctl.sim.steps import physics_steps
 from jointctl.validate import checked_number
 
 _KEYS = {
@@ -180,11 +181,7 @@ class _Validator:
             raise self.error("must be a non-empty list of controller names", "start_controllers", start)
         timestep = self.number("timestep_s", 0.001, positive=True)
         rate = self.number("loop_rate_hz", 1.0 / timestep, positive=True)
-        period = 1.0 / rate
-        steps = round(period / timestep)
-        if steps < 1 or abs(steps * timestep - period) > 1e-9:
-            raise self.error(f"the loop period must be a whole number of physics steps of {timestep} s",
-                             "loop_rate_hz", rate)
+        steps = physics_steps(1.0 / rate, timestep, source=self.source, field="loop_rate_hz", value=rate)
         floor = raw.get("floor", True)
         if not isinstance(floor, bool):
             raise self.error("must be true or false", "floor", floor)
