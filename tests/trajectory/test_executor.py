@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-import jointctl.trajectory.executor as executor_module
+import jointctl.trajectory.goals as goals_module
 from jointctl.errors import InvalidCommand
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import load_scenario
@@ -137,12 +137,12 @@ def captured_handles(monkeypatch):
     otherwise out of reach)."""
     handles = []
 
-    class RecordingHandle(executor_module.GoalHandle):
+    class RecordingHandle(goals_module.GoalHandle):
         def __init__(self, *args, **kwargs) -> None:
             super().__init__(*args, **kwargs)
             handles.append(self)
 
-    monkeypatch.setattr(executor_module, "GoalHandle", RecordingHandle)
+    monkeypatch.setattr(goals_module, "GoalHandle", RecordingHandle)
     return handles
 
 

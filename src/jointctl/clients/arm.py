@@ -33,13 +33,15 @@ from typing import Protocol, TextIO
 
 from jointctl.errors import JointCtlError
 from jointctl.trajectory.messages import JointSpec, JointTrajectory
+from jointctl.trajectory.timing import (PATH_MAX_ACCELERATION, PATH_MAX_JERK, PATH_TIMINGS,
+                                        PATH_VELOCITY_FRACTION, time_path)
 
 #: The built-in scenario the in-process clients drive, and its trajectory executor.
 SCENARIO = "arm7dof_streamer"
 EXECUTOR = "arm7dof_trajectory_controller"
 #: The prompter's first move (rad), the chapter's pre-pose.
 PRE_POSE = (0.0, 1.0, 0.0, -2.0, 0.0, 1.0, 0.0)
-TIMINGS = ("chapter", "ruckig")
+TIMINGS = PATH_TIMINGS
 ANGLE_PROMPT = "enter angle command: "
 #: Extra loop time (s) allowed after a goal's last point and its goal time before it is canceled.
 GOAL_MARGIN_S = 2.0
@@ -222,11 +224,14 @@ class RosGoalSender:
 
         def per_joint(key: str, default: float) -> list[float]:
             value = params.get(key, default)
+            if isinstance(value, dict):  # joint -> value, as the executor reads it
+                return [float(value.get(j, default)) for j in self.joint_names]
             return [float(v) for v in value] if isinstance(value, (list, tuple)) else [float(value)] * n
 
-        self.path_velocity_fraction = float(params.get("path_velocity_fraction", 0.5))
-        self.max_acceleration = per_joint("max_acceleration", 2.0)
-        self.max_jerk = per_joint("max_jerk", 20.0)
+        # The executor's timing parameters, with its defaults (jointctl.trajectory.timing's).
+        self.path_velocity_fraction = float(params.get("path_velocity_fraction", PATH_VELOCITY_FRACTION))
+        self.max_acceleration = per_joint("max_acceleration", PATH_MAX_ACCELERATION)
+        self.max_jerk = per_joint("max_jerk", PATH_MAX_JERK)
         self.goal_time_s = float(params.get("goal_time_s", 0.5))
         self._latest: dict[str, float] = {}
         self._have_state = threading.Event()
@@ -254,26 +259,12 @@ class RosGoalSender:
 
     def plan(self, path: Sequence[Sequence[float]], *, timing: str = "chapter",
              joint_names: Sequence[str] | None = None) -> JointTrajectory:
-        import numpy as np
-
-        from jointctl.trajectory.timing import chapter_timing, ruckig_timing
-
-        names = tuple(joint_names or self.joint_names)
-        columns = [self.joint_names.index(n) for n in names]
-        rows = np.asarray(path, dtype=float).reshape(-1, len(names))
-        current = np.asarray(self.current_positions())[columns]
-        full = np.vstack((current, rows))
-        vmax = np.array([self.joint_specs[c].max_velocity for c in columns]) * self.path_velocity_fraction
-        start_s = 0.1  # the current pose first, a moment after sending (as the in-process executor does)
-        if timing == "chapter":
-            return JointTrajectory.from_arrays(names, chapter_timing(full, vmax, velocity_fraction=1.0) + start_s,
-                                               full)
-        if timing != "ruckig":
+        if timing not in TIMINGS:
             raise JointCtlError(f"must be one of {', '.join(TIMINGS)}", field="timing", value=timing)
-        amax = np.array([self.max_acceleration[c] for c in columns])
-        jmax = np.array([self.max_jerk[c] for c in columns])
-        times, positions, velocities, accelerations = ruckig_timing(full, vmax, amax, jmax)
-        return JointTrajectory.from_arrays(names, times + start_s, positions, velocities, accelerations)
+        return time_path(self.joint_names, self.current_positions(), path,
+                         [spec.max_velocity for spec in self.joint_specs], timing=timing, path_joints=joint_names,
+                         velocity_fraction=self.path_velocity_fraction, max_acceleration=self.max_acceleration,
+                         max_jerk=self.max_jerk)
 
     def send(self, trajectory: JointTrajectory) -> GoalOutcome:
         import time

@@ -1,6 +1,9 @@
 """Timing a path: turning positions without times (array (N, J)) into a trajectory.
 
-Two rules:
+:func:`time_path` is the one way jointctl times a path from the current pose
+(the in-process executor's ``plan_path`` and the ROS client both call it); the
+defaults of its limits are here, and the executor's parameters of the same
+names default to them. Two rules:
 
 * :func:`chapter_timing`: the chapter's "stuff trajectory" rule (a fraction of
   the velocity limit per segment, at least a minimum segment time). Cheap and
@@ -15,6 +18,7 @@ Units: positions rad (or m), times s, limits per s, s², s³.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -22,8 +26,20 @@ from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
 from jointctl.trajectory.interpolation import Interpolant, build_interpolant
+from jointctl.trajectory.messages import JointTrajectory
 
 FloatArray = NDArray[np.float64]
+
+#: The path-timing rules :func:`time_path` knows.
+PATH_TIMINGS = ("chapter", "ruckig")
+#: Fraction of each joint's velocity limit a timed path may use.
+PATH_VELOCITY_FRACTION = 0.5
+#: Acceleration (per s²) and jerk (per s³) limits of ruckig timing, per joint.
+PATH_MAX_ACCELERATION = 2.0
+PATH_MAX_JERK = 20.0
+#: The current pose is a timed path's first point, this long after sending (s), as the chapter's
+#: clients prepend it.
+PATH_START_S = 0.1
 
 #: Shortest segment ruckig_timing produces (s); a repeated waypoint becomes a hold this long.
 MIN_RUCKIG_SEGMENT_S = 1e-6
@@ -70,6 +86,56 @@ def _positive(value: Any, name: str) -> float:
     if not np.isfinite(number) or number <= 0.0:
         raise ValueError(f"{name} must be positive and finite, got {value!r}")
     return number
+
+
+def time_path(joint_names: Sequence[str], current: Any, path: Any, max_velocity: Any, *,
+              timing: str = "ruckig", path_joints: Sequence[str] | None = None,
+              velocity_fraction: float = PATH_VELOCITY_FRACTION, max_acceleration: Any = PATH_MAX_ACCELERATION,
+              max_jerk: Any = PATH_MAX_JERK, start_s: float = PATH_START_S) -> JointTrajectory:
+    """A trajectory from the current pose through a path of poses without times.
+
+    Args:
+        joint_names: every joint of the robot part (J).
+        current: their positions now (J,), the trajectory's first point, at ``start_s``.
+        path: rows of positions of ``path_joints`` (default: every joint, in order); the
+            trajectory names those joints only (the others hold).
+        max_velocity: the joints' velocity limits (J,) or a scalar, per s; a path uses
+            ``velocity_fraction`` of them.
+        timing: ``"ruckig"``: jerk-limited and time-optimal per segment (:func:`ruckig_timing`)
+            within those velocities, ``max_acceleration`` and ``max_jerk`` (scalars or (J,));
+            ``"chapter"``: the chapter's rule (:func:`chapter_timing`: the slowest joint at those
+            velocities, at least 20 ms a segment), positions only.
+        start_s: time of the first point (the current pose) after sending, s.
+
+    Raises:
+        ValueError: an unknown rule or joint, a path that is not rows of ``path_joints``,
+            NaN, or limits that are not positive.
+    """
+    all_names = tuple(joint_names)
+    names = tuple(path_joints or all_names)
+    try:
+        columns = [all_names.index(n) for n in names]
+    except ValueError:
+        raise ValueError(f"path joints {list(names)} are not all among {list(all_names)}") from None
+
+    def per_joint(value: Any, what: str) -> FloatArray:
+        array = np.asarray(value, dtype=float)
+        if array.ndim == 0:
+            return np.full(len(columns), float(array))
+        if array.shape != (len(all_names),):
+            raise ValueError(f"{what} must be a scalar or have shape ({len(all_names)},), got {array.shape}")
+        return array[columns]
+
+    rows = np.asarray(path, dtype=float).reshape(-1, len(names))
+    full = np.vstack((per_joint(current, "current"), rows))
+    vmax = per_joint(max_velocity, "max_velocity") * velocity_fraction
+    if timing == "chapter":
+        return JointTrajectory.from_arrays(names, chapter_timing(full, vmax, velocity_fraction=1.0) + start_s, full)
+    if timing != "ruckig":
+        raise ValueError(f"timing must be one of {', '.join(PATH_TIMINGS)}, got {timing!r}")
+    times, positions, velocities, accelerations = ruckig_timing(
+        full, vmax, per_joint(max_acceleration, "max_acceleration"), per_joint(max_jerk, "max_jerk"))
+    return JointTrajectory.from_arrays(names, times + start_s, positions, velocities, accelerations)
 
 
 def chapter_timing(path: Any, max_velocity: Any, *, velocity_fraction: float = 0.5,
