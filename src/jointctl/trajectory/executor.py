@@ -46,7 +46,7 @@ from jointctl.model.robot_model import RobotModel
 from jointctl.trajectory.errors import InvalidTrajectory, TrajectoryErrorCode
 from jointctl.trajectory.goals import GoalHandle, GoalQueue, GoalResult, GoalStatus, TrajectoryFeedback
 from jointctl.trajectory.messages import JointSpec, JointTrajectory
-from jointctl.trajectory.plan import BLOCK_CYCLES, INTERPOLATIONS, Plan
+from jointctl.trajectory.plan import BLOCK_CYCLES, INTERPOLATIONS, Plan, Row, interleave
 from jointctl.trajectory.timing import (PATH_MAX_ACCELERATION, PATH_MAX_JERK, PATH_START_S,
                                         PATH_VELOCITY_FRACTION, time_path)
 from jointctl.trajectory.tolerances import goal_reached, path_violation, worst_joint
@@ -113,6 +113,20 @@ class TrajectoryExecutor(Controller):
         scalar = params.number(key, default, minimum=0, positive=positive)
         return (scalar,) * len(self.joint_names)
 
+    # The references in hand (those of the last cycle) are one row, joint by joint: (q0, v0, a0, q1, ...).
+    @property
+    def desired(self) -> list[float]:
+        """Desired positions (the position references of the last cycle)."""
+        return list(self._ref[0::3])
+
+    @property
+    def desired_velocity(self) -> list[float]:
+        return list(self._ref[1::3])
+
+    @property
+    def desired_acceleration(self) -> list[float]:
+        return list(self._ref[2::3])
+
     @property
     def active_goal(self) -> GoalHandle | None:
         """The goal being executed, if any."""
@@ -155,9 +169,7 @@ class TrajectoryExecutor(Controller):
 
     def start(self, time_s: float) -> None:
         self.hardware.read()
-        self.desired = list(self._of_joints(self.hardware.position))
-        self.desired_velocity = self._zeros
-        self.desired_acceleration = self._zeros
+        self._ref: Row = interleave(self._of_joints(self.hardware.position), self._zeros, self._zeros)
         self._plan: Plan | None = None
         self._next_stream_s = time_s
         self._next_feedback_s = time_s
@@ -177,7 +189,7 @@ class TrajectoryExecutor(Controller):
         self._running = False
         self.goals.abort_all(why, time_s)
         self._plan = None
-        for target, q in zip(self.targets, self.desired):
+        for target, q in zip(self.targets, self._ref[0::3]):
             target.set_command(q, 0.0, 0.0)  # the position controllers hold, without feed-forward
 
     # -- doors (any thread) ------------------------------------------------------------------
@@ -311,29 +323,38 @@ class TrajectoryExecutor(Controller):
         if plan is not None:
             stream_period = self._stream_period_s
             if stream_period is None:
-                self.desired, self.desired_velocity, self.desired_acceleration = plan.at(time_s, period_s)
+                self._ref = plan.at(time_s, period_s)
             elif time_s + 1e-9 >= self._next_stream_s:
                 self._next_stream_s += stream_period
-                self.desired, self.desired_velocity, self.desired_acceleration = plan.at(time_s, period_s)
+                self._ref = plan.at(time_s, period_s)
         elif time_s > self._stream_deadline_s:  # watchdog: the stream stopped
-            self.desired_velocity = self.desired_acceleration = self._zeros
+            self._ref = interleave(self._ref[0::3], self._zeros, self._zeros)
             self._stream_deadline_s = math.inf
-        self._write()
+        # _write(), inline: this is the cycle's main cost after the references' own.
+        if self.velocity_feedforward:
+            values = iter(self._ref)  # map takes a target, then q, v and a of its joint, from the row
+            for _ in map(self._set_reference, self.targets, values, values, values):
+                pass
+        else:
+            for _ in map(self._set_reference, self.targets, self._ref[0::3], self._zeros, self._zeros):
+                pass
         if goal is not None and time_s + 1e-9 >= self._supervise_at:
             self._supervise(time_s, goal, plan)
 
     def _write(self) -> None:
-        # References come from validated goals through polynomials: finite by construction.
+        """The references in hand to the position controllers (inline in :meth:`update`). They come
+        from validated goals and streams through polynomials: finite by construction."""
         if self.velocity_feedforward:
-            for _ in map(self._set_reference, self.targets, self.desired, self.desired_velocity,
-                         self.desired_acceleration):
+            values = iter(self._ref)
+            for _ in map(self._set_reference, self.targets, values, values, values):
                 pass
         else:
-            for _ in map(self._set_reference, self.targets, self.desired, self._zeros, self._zeros):
+            for _ in map(self._set_reference, self.targets, self._ref[0::3], self._zeros, self._zeros):
                 pass
 
-    def _state(self) -> tuple[list[float], list[float], list[float]]:
-        return self.desired, self.desired_velocity, self.desired_acceleration
+    def _state(self) -> tuple[Row, Row, Row]:
+        ref = self._ref
+        return ref[0::3], ref[1::3], ref[2::3]
 
     def _activate(self, handle: GoalHandle, time_s: float, period_s: float) -> None:
         self.goals.activate(handle, time_s)
@@ -355,9 +376,7 @@ class TrajectoryExecutor(Controller):
         self.goals.end(GoalStatus.PREEMPTED, TrajectoryErrorCode.SUCCESSFUL, "replaced by streamed references",
                        time_s)
         self._plan = None
-        self.desired = list(positions)
-        self.desired_velocity = list(velocities)
-        self.desired_acceleration = self._zeros
+        self._ref = interleave(positions, velocities, self._zeros)
         self._stream_deadline_s = time_s + self.watchdog_timeout_s
 
     def _supervise(self, time_s: float, goal: GoalHandle, plan: Plan | None) -> None:
@@ -365,10 +384,11 @@ class TrajectoryExecutor(Controller):
         stop; at its end it succeeds, or is aborted ``goal_time_s`` later."""
         hw = self.hardware
         actual = self._of_joints(hw.position)
+        desired = self._ref[0::3]
         if time_s + 1e-9 >= self._next_feedback_s:
             self._next_feedback_s += self._feedback_period_s
-            feedback = TrajectoryFeedback(time_s, self.joint_names, tuple(self.desired),
-                                          tuple(self.desired_velocity), actual, self._of_joints(hw.velocity))
+            feedback = TrajectoryFeedback(time_s, self.joint_names, desired, self._ref[1::3], actual,
+                                          self._of_joints(hw.velocity))
             self.latest_feedback = feedback
             if goal.on_feedback is not None:
                 goal.on_feedback(feedback)
@@ -377,24 +397,24 @@ class TrajectoryExecutor(Controller):
         # Next cycle that needs this: every cycle when checking the path, else feedback or the end.
         self._supervise_at = -math.inf if self._checks_path else min(self._next_feedback_s, plan.end_s)
         if time_s < plan.end_s and self._checks_path:
-            k = path_violation(self.desired, actual, self.path_tolerance)
+            k = path_violation(desired, actual, self.path_tolerance)
             if k is not None:
                 self._plan = Plan.stop(self._state(), time_s, 0.0,  # this cycle's desired state, at its time
                                        self.stop_deceleration)
                 self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.PATH_TOLERANCE_VIOLATED,
-                               f"joint {self.joint_names[k]!r} is {abs(self.desired[k] - actual[k]):.4g} from "
+                               f"joint {self.joint_names[k]!r} is {abs(desired[k] - actual[k]):.4g} from "
                                f"its path (tolerance {self.path_tolerance[k]})", time_s)
                 return
         if time_s + 1e-9 < plan.end_s:
             return
-        if goal_reached(self.desired, actual, self._of_joints(hw.velocity), self.goal_tolerance,
+        if goal_reached(desired, actual, self._of_joints(hw.velocity), self.goal_tolerance,
                         self.stopped_velocity_tolerance):
             self.goals.end(GoalStatus.SUCCEEDED, TrajectoryErrorCode.SUCCESSFUL, "", time_s)
         elif time_s > plan.end_s + self.goal_time_s:
-            worst = worst_joint(self.desired, actual)
+            worst = worst_joint(desired, actual)
             self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.GOAL_TOLERANCE_VIOLATED,
                            f"joint {self.joint_names[worst]!r} ended "
-                           f"{abs(self.desired[worst] - actual[worst]):.4g} from its goal "
+                           f"{abs(desired[worst] - actual[worst]):.4g} from its goal "
                            f"{self.goal_time_s} s after the end", time_s)
 
 

@@ -18,6 +18,7 @@ the ``ValueError`` raised here is a programming guard.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Literal
 
 import numpy as np
@@ -126,35 +127,46 @@ class Interpolant:
         out = self._evaluate(t_arr)
         return out[0].T, out[1].T, out[2].T
 
-    def _evaluate(self, t: FloatArray) -> FloatArray:
-        """Positions, velocities, accelerations (3, J, T) at the times ``t`` (T,), none NaN."""
+    def _evaluate(self, t: FloatArray, *, increasing: bool | None = None) -> FloatArray:
+        """Positions, velocities, accelerations (3, J, T) at the times ``t`` (T,), none NaN;
+        ``increasing``: whether ``t`` is known to be in order (None: check)."""
         times = self.times_s
         n_joints, n_t = self.positions.shape[1], t.size
         out = np.empty((3, n_joints, n_t))
         first, last = times[0], times[-1]
-        if n_t > 1 and bool((t[1:] >= t[:-1]).all()):
-            lo = int(np.searchsorted(t, first, side="left"))   # t[:lo] before the first knot
-            hi = int(np.searchsorted(t, last, side="left"))    # t[hi:] at or after the last knot
+        if increasing is None:
+            increasing = n_t > 1 and bool((t[1:] >= t[:-1]).all())
+        if increasing and n_t > 1:
+            lo = int(t.searchsorted(first))                 # t[:lo] before the first knot
+            hi = int(t.searchsorted(last))                  # t[hi:] at or after the last knot
             if lo < hi:
-                # Samples lo..hi-1 fall into the segments in order: segment s holds a run of
-                # samples, bounds[s] to bounds[s + 1] - 1 (bounds[0] = lo, bounds[-1] = hi).
-                bounds = np.searchsorted(t, times, side="left")
-                _fill(self._table, times, t, out, lo, hi, bounds)
-            before, after = slice(0, lo), slice(hi, n_t)
-            at_end = slice(hi, int(np.searchsorted(t, last, side="right")))
+                # Samples lo..hi-1 fall into segments s0..s1 in order, a run of samples each.
+                s0 = int(times.searchsorted(t[lo], side="right")) - 1
+                s1 = int(times.searchsorted(t[hi - 1], side="right")) - 1
+                bounds = np.empty(s1 - s0 + 2, dtype=np.intp)  # segment s0 + i: bounds[i]..bounds[i+1]-1
+                bounds[0], bounds[-1] = lo, hi
+                bounds[1:-1] = t.searchsorted(times[s0 + 1:s1 + 1])
+                _fill_runs(self._table, times, t, out, s0, bounds)
+            if hi < n_t:
+                end = int(t.searchsorted(last, side="right"))
+                self._outside(out, slice(0, lo), slice(hi, n_t), slice(hi, end))
+            elif lo:
+                self._outside(out, slice(0, lo), slice(0, 0), slice(0, 0))
         else:
             before, after = t < first, t >= last
-            at_end = t == last
-            inside = ~(before | after)
-            if inside.any():
-                _fill(self._table, times, t, out, 0, n_t, None)
+            if not (before | after).all():
+                _fill_lookup(self._table, times, t, out)
+            self._outside(out, before, after, t == last)
+        return out
+
+    def _outside(self, out: FloatArray, before: Any, after: Any, at_end: Any) -> None:
+        """Holds before the first knot and after the last; the last knot's values at its time."""
         out[0][:, before] = self.positions[0][:, None]
         out[0][:, after] = self.positions[-1][:, None]
         out[1:, :, before] = 0.0
         out[1:, :, after] = 0.0
         out[1][:, at_end] = self.velocities[-1][:, None]
         out[2][:, at_end] = self.accelerations[-1][:, None]
-        return out
 
 
 #: Coefficients each kind uses (the others are zero).
@@ -163,60 +175,79 @@ _ORDER = {"linear": 2, "cubic": 4, "quintic": 6}
 _CHUNK = 4096
 
 
-def _fill(table: FloatArray, times: FloatArray, t: FloatArray, out: FloatArray, lo: int, hi: int,
-          bounds: Any) -> None:
-    """Evaluate the samples ``t[lo:hi]`` into ``out[:, :, lo:hi]`` (positions, velocities,
-    accelerations), a chunk at a time. With ``bounds`` (K,) the times are increasing and segment
-    ``s`` holds samples ``bounds[s]..bounds[s+1]-1``; without, each sample's segment is searched.
-
-    Horner's scheme in ``tau = t - times[segment]``; the derivatives' coefficients are the
-    position coefficients times their powers (``c[i+1]·(i+1)``, then that times ``i+1`` again).
-    Samples outside ``[times[0], times[-1])`` get the first or last segment's polynomial (the
-    caller overwrites them).
-    """
-    rows = table.shape[0]
-    n_joints = out.shape[1]
-    order = rows // n_joints
-    n_segments = times.size - 1
-    size = min(_CHUNK, hi - lo)
-    d1 = np.empty(((order - 2) * n_joints, size))   # velocity coefficients 2c2, 3c3, ...
-    d2 = np.empty((max(order - 3, 0) * n_joints, size))   # acceleration coefficients beyond d1[1]
-    tau_all = np.empty(size)
-    if bounds is None:
-        seg_all = np.searchsorted(times, t[lo:hi], side="right") - 1
-        np.clip(seg_all, 0, n_segments - 1, out=seg_all)
-        work = np.empty((rows, size))
+def _fill_runs(table: FloatArray, times: FloatArray, t: FloatArray, out: FloatArray, s0: int,
+               bounds: FloatArray) -> None:
+    """Evaluate increasing times: segment ``s0 + i`` holds samples ``bounds[i]..bounds[i+1]-1``.
+    Each segment's column of coefficients is repeated over its run (no per-sample look-up)."""
+    lo, hi = int(bounds[0]), int(bounds[-1])
+    work = _Work(table.shape[0], out.shape[1], min(_CHUNK, hi - lo))
     for a in range(lo, hi, _CHUNK):
         b = min(a + _CHUNK, hi)
-        m = b - a
-        tau = tau_all[:m]
-        if bounds is None:
-            seg = seg_all[a - lo:b - lo]
-            g = work[:, :m]
-            np.take(table, seg, axis=1, out=g)
-            np.take(times, seg, out=tau)
-        else:  # repeat each segment's column over its run of samples (no per-sample look-up)
-            s0 = int(np.searchsorted(bounds, a, side="right")) - 1
-            s1 = int(np.searchsorted(bounds, b - 1, side="right")) - 1
-            counts = np.minimum(bounds[s0 + 1:s1 + 2], b) - np.maximum(bounds[s0:s1 + 1], a)
-            g = np.repeat(table[:, s0:s1 + 1], counts, axis=1)
-            tau[...] = np.repeat(times[s0:s1 + 1], counts)
+        if a == lo and b == hi:
+            i0, counts = 0, np.diff(bounds)
+        else:
+            i0 = int(bounds.searchsorted(a, side="right")) - 1
+            i1 = int(bounds.searchsorted(b - 1, side="right")) - 1
+            counts = np.minimum(bounds[i0 + 1:i1 + 2], b) - np.maximum(bounds[i0:i1 + 1], a)
+        columns = slice(s0 + i0, s0 + i0 + counts.size)
+        tau = work.tau[:b - a]
+        tau[...] = times[columns].repeat(counts)
         np.subtract(t[a:b], tau, out=tau)
-        c = [g[i * n_joints:(i + 1) * n_joints] for i in range(order)]
-        p, v, acc = out[0, :, a:b], out[1, :, a:b], out[2, :, a:b]
+        work.evaluate(table[:, columns].repeat(counts, axis=1), tau, out[:, :, a:b])
+
+
+def _fill_lookup(table: FloatArray, times: FloatArray, t: FloatArray, out: FloatArray) -> None:
+    """Evaluate times in any order: each sample's segment is searched and its coefficients gathered.
+    Samples outside ``[times[0], times[-1])`` get the first or last segment's polynomial (the
+    caller overwrites them)."""
+    n_t = t.size
+    segments = times.searchsorted(t, side="right") - 1
+    np.clip(segments, 0, times.size - 2, out=segments)
+    work = _Work(table.shape[0], out.shape[1], min(_CHUNK, n_t))
+    gathered = np.empty((table.shape[0], work.tau.size))
+    for a in range(0, n_t, _CHUNK):
+        b = min(a + _CHUNK, n_t)
+        seg, tau, g = segments[a:b], work.tau[:b - a], gathered[:, :b - a]
+        table.take(seg, axis=1, out=g)
+        times.take(seg, out=tau)
+        np.subtract(t[a:b], tau, out=tau)
+        work.evaluate(g, tau, out[:, :, a:b])
+
+
+class _Work:
+    """Work arrays for evaluating chunks of up to ``size`` samples of ``n_joints`` joints."""
+
+    def __init__(self, rows: int, n_joints: int, size: int) -> None:
+        self.order = rows // n_joints
+        self.n_joints = n_joints
+        rows_d1 = max(self.order - 2, 0) * n_joints
+        work = np.empty((1 + rows_d1 + max(self.order - 3, 0) * n_joints, size))
+        self.tau = work[0]
+        self.d1 = work[1:1 + rows_d1]   # velocity coefficients 2c2, 3c3, ...
+        self.d2 = work[1 + rows_d1:]    # acceleration coefficients beyond 2c2
+
+    def evaluate(self, g: FloatArray, tau: FloatArray, out: FloatArray) -> None:
+        """``out`` (3, J, n): positions, velocities, accelerations from the coefficients ``g``
+        (order·J, n: coefficient i of joint j at row i·J + j) at ``tau`` (n,) into their segments.
+
+        Horner's scheme; the derivatives' coefficients are the position coefficients times their
+        powers (``c[i+1]·(i+1)``, then that times ``i+1`` again)."""
+        n, m, order = self.n_joints, tau.size, self.order
+        c = [g[i * n:(i + 1) * n] for i in range(order)]
+        p, v, a = out
         _horner(c, tau, p)
         if order == 2:  # linear: the slope, no acceleration
             v[...] = c[1]
-            acc[...] = 0.0
-            continue
-        v_coeffs = [c[1]] + [d1[(i - 1) * n_joints:i * n_joints, :m] for i in range(1, order - 1)]
+            a[...] = 0.0
+            return
+        v_coeffs = [c[1]] + [self.d1[(i - 1) * n:i * n, :m] for i in range(1, order - 1)]
         for i in range(1, order - 1):
             np.multiply(c[i + 1], float(i + 1), out=v_coeffs[i])
-        a_coeffs = [v_coeffs[1]] + [d2[(i - 1) * n_joints:i * n_joints, :m] for i in range(1, order - 2)]
+        a_coeffs = [v_coeffs[1]] + [self.d2[(i - 1) * n:i * n, :m] for i in range(1, order - 2)]
         for i in range(1, order - 2):
             np.multiply(v_coeffs[i + 1], float(i + 1), out=a_coeffs[i])
         _horner(v_coeffs, tau, v)
-        _horner(a_coeffs, tau, acc)
+        _horner(a_coeffs, tau, a)
 
 
 def _horner(coefficients: list[FloatArray], tau: FloatArray, out: FloatArray) -> None:
@@ -364,10 +395,11 @@ def sample_block(interpolant: Interpolant, t0: float, period_s: float,
         start, period, n = float(t0), float(period_s), int(count)
     except (TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"bad sample_block arguments: {exc}") from None
-    if not np.isfinite(start):
+    if not math.isfinite(start):
         raise ValueError(f"t0 must be finite, got {t0!r}")
-    if not (np.isfinite(period) and period > 0.0):
+    if not (math.isfinite(period) and period > 0.0):
         raise ValueError(f"period_s must be positive and finite, got {period_s!r}")
     if n != count or n < 0:
         raise ValueError(f"count must be a non-negative integer, got {count!r}")
-    return interpolant.sample(start + period * np.arange(n, dtype=float))
+    out = interpolant._evaluate(start + period * np.arange(n, dtype=float), increasing=True)
+    return out[0].T, out[1].T, out[2].T

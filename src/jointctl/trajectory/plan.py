@@ -3,14 +3,17 @@
 A :class:`Plan` holds one or more interpolants, each over some of the executor's joints, in
 time since its start. :meth:`Plan.splice` continues from the desired state in hand (position
 and velocity, so there is no jump) into a goal's future points, bringing the joints the goal
-does not name to rest; :meth:`Plan.stop` decelerates every joint to rest together. The loop
-reads references with :meth:`Plan.at` once a cycle; they are sampled a block of
-``BLOCK_CYCLES`` cycles at a time (vectorised) and handed out as lists of floats, so a cycle
-costs an index, not an evaluation.
+does not name to rest; :meth:`Plan.stop` decelerates every joint to rest together.
+
+The loop reads references with :meth:`Plan.at` once a cycle. They are sampled a block of
+``BLOCK_CYCLES`` cycles at a time (one vectorised evaluation) into a buffer of doubles, one row
+a cycle, and a cycle unpacks its row (one C call for every joint's three values), so a cycle
+costs neither an evaluation nor thousands of Python floats made at once and kept for a block.
 """
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Sequence
 
 import numpy as np
@@ -23,6 +26,8 @@ INTERPOLATIONS = ("linear", "cubic", "quintic", "auto")
 
 #: The desired positions, velocities and accelerations of every joint, in the executor's order.
 State = tuple[Sequence[float], Sequence[float], Sequence[float]]
+#: One cycle's references, joint by joint: (q0, v0, a0, q1, v1, a1, ...).
+Row = tuple[float, ...]
 Part = tuple[Interpolant, np.ndarray]
 
 
@@ -39,9 +44,9 @@ class Plan:
         self._whole = len(parts) == 1 and np.array_equal(parts[0][1], np.arange(n_joints))
         self._block_t0 = start_s
         self._count = 0  # cycles in the block in hand (none yet)
-        self._q: list[list[float]] = []
-        self._v: list[list[float]] = []
-        self._a: list[list[float]] = []
+        self._block = b""
+        self._row_bytes = 3 * n_joints * 8
+        self._unpack = struct.Struct(f"={3 * n_joints}d").unpack_from
 
     @classmethod
     def splice(cls, goal: ValidatedTrajectory, state: State, start_s: float, time_s: float, *,
@@ -91,14 +96,14 @@ class Plan:
         return cls([stop_part(state[0], state[1], stop_deceleration, np.arange(n), period_s)], n, start_s,
                    stopping=True)
 
-    def at(self, time_s: float, period_s: float) -> tuple[list[float], list[float], list[float]]:
-        """Desired positions, velocities and accelerations of every joint at loop time ``time_s``, in
-        a cycle of ``period_s``. The lists belong to the plan: read them, do not change them."""
+    def at(self, time_s: float, period_s: float) -> Row:
+        """Desired position, velocity and acceleration of every joint at loop time ``time_s``, in a
+        cycle of ``period_s``, joint by joint: (q0, v0, a0, q1, v1, a1, ...)."""
         k = round((time_s - self._block_t0) / period_s) if period_s > 0 else -1
         if not 0 <= k < self._count:
             self._sample_block(time_s, period_s)
             k = 0
-        return self._q[k], self._v[k], self._a[k]
+        return self._unpack(self._block, k * self._row_bytes)
 
     def _sample_block(self, time_s: float, period_s: float) -> None:
         """Sample the cycles from ``time_s`` on (one cycle when the period is not positive)."""
@@ -111,7 +116,7 @@ class Plan:
             q, v, a = np.empty((3, count, self._n))
             for interp, columns in self.parts:
                 q[:, columns], v[:, columns], a[:, columns] = sample_block(interp, since_start, step, count)
-        self._q, self._v, self._a = q.tolist(), v.tolist(), a.tolist()
+        self._block = np.stack((q, v, a), axis=-1).tobytes()  # (count, joints, 3) doubles
         self._block_t0 = time_s
         self._count = count
 
@@ -127,3 +132,8 @@ def stop_part(positions: Sequence[float], velocities: Sequence[float], decelerat
     knots = np.vstack((q0, q0 + v0 * duration / 2))
     knot_velocities = np.vstack((v0, np.zeros_like(v0)))
     return build_interpolant(np.array([0.0, duration]), knots, knot_velocities, kind="cubic"), columns
+
+
+def interleave(positions: Sequence[float], velocities: Sequence[float], accelerations: Sequence[float]) -> Row:
+    """A row of references, joint by joint, as :meth:`Plan.at` gives it."""
+    return tuple(x for row in zip(positions, velocities, accelerations) for x in row)
