@@ -6,7 +6,7 @@ base frame), ``τ = Jvᵀ f``, ``q̈ = H⁻¹ (τ - c q̇)``, ``q̇_cmd += q̈ d
 velocity limits. With wrist joints W servoing the flange orientation, the arm joints A follow
 ``(Tᵀ H T) q̈_A = Tᵀ (Jvᵀ f - c q̇)`` with ``T = [I; -Jr_W⁺ Jr_A]`` and the wrist gets
 ``q̇_W = Jr_W⁺ (k e - Jr_A q̇_A)``. The hand computations below use a Jacobian from finite
-differences of the forward kinematics, not MuJoCo's.
+differences of the forward kinematics (the robot's own model, jointctl.model.dynamics), not its Jacobian.
 """
 
 from __future__ import annotations
@@ -19,11 +19,12 @@ import pytest
 import yaml
 
 from jointctl.control import CartesianAdmittanceController, ControllerManager, JointVelocityController
-from jointctl.control.cartesian_admittance_controller import FlangeKinematics, rotation_vector
+from jointctl.control.cartesian_admittance_controller import rotation_vector
 from jointctl.control.controller import controller_types
 from jointctl.errors import ConfigError, ControllerError
 from jointctl.hardware.interface import EFFORT
 from jointctl.model import load_robot_model
+from jointctl.model.dynamics import RobotDynamics
 from jointctl.paths import robots_dir
 
 from .conftest import FakeHardware
@@ -63,9 +64,39 @@ def arm():
     return load_robot_model(ARM_DIR / "urdf" / "arm7dof.xacro")
 
 
+class FlangeKinematics:
+    """The flange (link8) and the sensor frame of the arm's own model, as copies for hand computations."""
+
+    def __init__(self, arm) -> None:
+        self.dynamics = RobotDynamics(arm, joints=JOINTS)
+        self.flange, self.sensor = self.dynamics.frame("link8"), self.dynamics.frame("ft_sensor_link")
+
+    def set_pose(self, q, *, inertia: bool = False) -> None:
+        self.dynamics.set_pose(q, inertia=inertia)
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.flange.position.copy()
+
+    @property
+    def rotation(self) -> np.ndarray:
+        return self.flange.rotation.copy()
+
+    @property
+    def sensor_rotation(self) -> np.ndarray:
+        return self.sensor.rotation.copy()
+
+    def jacobians(self) -> tuple[np.ndarray, np.ndarray]:
+        jv, jr = self.flange.jacobians()
+        return jv.copy(), jr.copy()
+
+    def mass_matrix(self) -> np.ndarray:
+        return self.dynamics.mass_matrix()
+
+
 @pytest.fixture(scope="module")
 def kin(arm) -> FlangeKinematics:
-    return FlangeKinematics(arm, JOINTS, "link8", "ft_sensor_link")
+    return FlangeKinematics(arm)
 
 
 @pytest.fixture
@@ -184,11 +215,10 @@ def test_the_model_jacobian_matches_finite_differences_of_forward_kinematics(kin
     np.testing.assert_allclose(jr, jr_fd, atol=1e-7)
 
 
-def test_the_model_inertia_is_the_robot_dynamics_mass_matrix(kin, arm) -> None:
-    from jointctl.sim.dynamics import RobotDynamics
-
-    kin.set_pose(PRE_POSE, inertia=True)
-    np.testing.assert_allclose(kin.mass_matrix(), RobotDynamics(arm).mass_matrix(PRE_POSE), rtol=1e-12)
+def test_the_controller_uses_the_robot_dynamics_of_its_joints_and_frames(make_manager, arm) -> None:
+    nac = make_manager().load(NAC)
+    assert isinstance(nac.dynamics, RobotDynamics) and nac.dynamics.joint_names == JOINTS
+    assert (nac.flange.link, nac.sensor_frame.link) == ("link8", "ft_sensor_link")
 
 
 def test_rotation_vector_is_axis_times_angle() -> None:
@@ -200,20 +230,22 @@ def test_rotation_vector_is_axis_times_angle() -> None:
 
 
 # -- one cycle's arithmetic ------------------------------------------------------------------
-class StubKinematics:
-    """Hand-picked kinematics: flange at ``p``, sensor rotated by ``rs``, Jacobians given."""
+class StubFrame:
+    """A hand-picked frame: origin at ``p``, axes ``rotation``, Jacobians given."""
 
-    def __init__(self, p, jv, jr=None, rs=None) -> None:
-        self.position, self._jv = np.array(p, dtype=float), np.array(jv, dtype=float)
+    def __init__(self, p=(0.0, 0.0, 0.0), rotation=None, jv=None, jr=None) -> None:
+        self.position = np.array(p, dtype=float)
+        self.rotation = np.eye(3) if rotation is None else np.array(rotation, dtype=float)
+        self._jv = np.zeros((3, 7)) if jv is None else np.array(jv, dtype=float)
         self._jr = np.zeros((3, 7)) if jr is None else np.array(jr, dtype=float)
-        self.rotation = np.eye(3)
-        self.sensor_rotation = np.eye(3) if rs is None else np.array(rs, dtype=float)
-
-    def set_pose(self, q, *, inertia=False) -> None:
-        pass
 
     def jacobians(self):
-        return self._jv.copy(), self._jr.copy()
+        return self._jv, self._jr
+
+
+class StubDynamics:
+    def set_pose(self, q, *, inertia=False) -> None:
+        pass
 
 
 def test_one_update_by_hand_with_stub_kinematics(make_manager, hw) -> None:
@@ -223,7 +255,8 @@ def test_one_update_by_hand_with_stub_kinematics(make_manager, hw) -> None:
     jv = np.zeros((3, 7))
     jv[0, 0], jv[1, 1], jv[2, 2], jv[2, 3] = 1.0, 2.0, 0.5, -1.0
     rs = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # sensor turned 90° about z
-    nac.kinematics = StubKinematics([0.01, -0.02, 1.45], jv, rs=rs)
+    nac.dynamics, nac.flange, nac.sensor_frame = StubDynamics(), StubFrame([0.01, -0.02, 1.45], jv=jv), \
+        StubFrame(rotation=rs)
     hw.set_joints(PRE_POSE, [0.01, 0.0, 0.02, 0.0, 0.0, 0.0, 0.0])
     hw.set_wrench("ft_sensor", [0.5, 0.0, -3.0, 9.0, 9.0, 9.0])  # torques are ignored
     nac.update(0.0, DT)
@@ -278,7 +311,7 @@ def test_q_ddot_dt_is_added_once_per_cycle(make_manager, hw) -> None:
     hw.set_joints(PRE_POSE)
     hw.set_wrench("ft_sensor", [0.0, 0.0, -20.0, 0, 0, 0])
     nac.update(0.0, DT)
-    qdd = nac.acceleration.copy()
+    qdd = np.array(nac.acceleration)
     first = np.array(nac.velocity_command)
     np.testing.assert_allclose(first, qdd * DT, rtol=1e-12, atol=1e-18)
     nac.update(DT, DT)  # the same state: the same q̈ again, added once more
@@ -311,7 +344,7 @@ def test_velocity_commands_saturate_at_the_joint_limits_and_the_integrator_holds
     before = command.copy()
     hw.set_wrench("ft_sensor", [-300.0, 300.0, -300.0, 0, 0, 0])
     nac.update(1.0, DT)
-    np.testing.assert_allclose(nac.velocity_command, np.clip(before + nac.acceleration * DT, -LIMITS, LIMITS),
+    np.testing.assert_allclose(nac.velocity_command, np.clip(before + np.array(nac.acceleration) * DT, -LIMITS, LIMITS),
                                rtol=1e-12)
 
 
@@ -370,8 +403,41 @@ def test_with_the_wrist_the_arm_joints_follow_the_constrained_dynamics(make_mana
     qdd = np.linalg.solve(t.T @ h @ t, t.T @ (jv.T @ nac.virtual_force - qd))
     np.testing.assert_allclose(nac.acceleration, qdd, rtol=1e-3)
     np.testing.assert_allclose(nac.velocity_command[:4], qdd * DT, rtol=1e-3)
-    wrist = pinv @ (20.0 * nac.orientation_error - jr[:, a] @ (qdd * DT))
+    wrist = pinv @ (20.0 * np.array(nac.orientation_error) - jr[:, a] @ (qdd * DT))
     np.testing.assert_allclose(nac.velocity_command[4:], wrist, rtol=1e-3, atol=1e-9)
+
+
+@pytest.mark.parametrize("model_inertia", [False, True])
+@pytest.mark.parametrize("wrist", [[4, 5, 6], [5, 6], [3, 4, 5, 6]])
+def test_the_wrist_dynamics_are_the_documented_formula_evaluated_literally(make_manager, hw, kin, model_inertia,
+                                                                          wrist) -> None:
+    """T = [I; -P], P = Jr_Wᵀ·(Jr_W·Jr_Wᵀ + λ²·I)⁻¹·Jr_A; (Tᵀ·H·T)·q̈_A = Tᵀ·(Jvᵀ·f - c·q̇);
+    q̇_W = Jr_Wᵀ·(Jr_W·Jr_Wᵀ + λ²·I)⁻¹·(k·e - Jr_A·q̇_A): to rounding, whatever the wrist joints."""
+    q = np.array([0.1, 1.1, -0.2, -1.9, 0.15, 0.9, -0.1])
+    qd = np.array([0.01, -0.02, 0.03, 0.0, 0.02, -0.01, 0.005])
+    changes = {"use_model_inertia": True, "inertia_estimate": None} if model_inertia else {}
+    manager, nac = started(make_manager, tare=False, max_velocity=10.0, wrist_joints=wrist, **changes)
+    hw.set_joints(q, qd)
+    hw.set_wrench("ft_sensor", [0.3, -0.4, -5.0, 0, 0, 0])
+    angle = 1e-4  # an orientation error to servo
+    nac.target_rotation = nac.target_rotation @ np.array(
+        [[1, 0, 0], [0, math.cos(angle), -math.sin(angle)], [0, math.sin(angle), math.cos(angle)]])
+    nac.update(0.0, DT)
+    kin.set_pose(q, inertia=True)
+    jv, jr = kin.flange.jacobians()
+    a = [k for k in range(7) if k not in wrist]
+    dls = jr[:, wrist].T @ np.linalg.inv(jr[:, wrist] @ jr[:, wrist].T + 0.01**2 * np.eye(3))
+    t = np.vstack([np.eye(len(a)), -dls @ jr[:, a]])[np.argsort(a + wrist)]  # rows in joint order
+    h = kin.mass_matrix() if model_inertia else np.diag([20.0, 20.0, 10.0, 10.0, 3.0, 3.0, 3.0])
+    qdd = np.linalg.solve(t.T @ h @ t, t.T @ (jv.T @ nac.virtual_force - 1.0 * qd))
+    np.testing.assert_allclose(nac.acceleration, qdd, rtol=1e-9)
+    command = np.array(nac.velocity_command)
+    np.testing.assert_allclose(command[a], qdd * DT, rtol=1e-9)
+    e = rotation_vector(nac.target_rotation @ kin.rotation.T)
+    np.testing.assert_allclose(nac.orientation_error, e, atol=1e-15)
+    expected = dls @ (20.0 * e - jr[:, a] @ (qdd * DT))
+    assert np.abs(expected).max() < 10.0  # within max_velocity: not clamped
+    np.testing.assert_allclose(command[wrist], expected, rtol=1e-9)
 
 
 # -- tare ------------------------------------------------------------------------------------
@@ -413,7 +479,7 @@ def test_starting_again_resets_the_integrator_and_the_orientation(make_manager, 
     assert np.abs(nac.velocity_reference).max() > 0
     manager.stop([NAC, *VELS])
     manager.start([*VELS, NAC])
-    assert nac.velocity_reference.tolist() == [0.0] * 7
+    assert list(nac.velocity_reference) == [0.0] * 7
     assert nac.velocity_command == [0.0] * 7
 
 

@@ -14,11 +14,11 @@ from scipy.spatial.transform import Rotation
 from jointctl.errors import ModelError
 from jointctl.model import load_robot_model
 from jointctl.model.loader import expand_xacro
+from jointctl.model.mjcf import COLLISION_GROUP, VISUAL_GROUP, rpy_to_matrix, rpy_to_quat
 from jointctl.model.package_paths import PackageResolver
 from jointctl.model.urdf_parser import parse_urdf
 from jointctl.paths import robots_dir
 from jointctl.sim import MujocoWorld, WorldSettings, build_spec
-from jointctl.sim.mjcf_builder import COLLISION_GROUP, VISUAL_GROUP, rpy_to_matrix, rpy_to_quat
 
 ONE_DOF_XACRO = robots_dir() / "one_dof" / "urdf" / "one_dof_robot.xacro"
 DISK_KG = 0.01

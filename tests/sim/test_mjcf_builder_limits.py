@@ -1,4 +1,4 @@
-"""Joint limits are stops: the limit solver parameters mjcf_builder gives every limited joint.
+"""Joint limits are stops: the limit solver parameters model/mjcf.py gives every limited joint.
 
 Theory (docs/simulation.md): with solref = (tau, zeta) = (2 dt, 1) and MuJoCo's default impedance
 (dmin 0.9, dmax 0.95), a joint pushed into its limit by a constant f rests at a penetration
@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 
 from jointctl.model import load_robot_model
-from jointctl.paths import robots_dir
-from jointctl.sim import MujocoWorld, WorldSettings
-from jointctl.sim.mjcf_builder import (
+from jointctl.model.mjcf import (
     LIMIT_DAMPRATIO,
     LIMIT_SOLIMP,
     limit_overshoot_bound,
     limit_solref,
 )
+from jointctl.paths import robots_dir
+from jointctl.sim import MujocoWorld, WorldSettings
 from jointctl.sim.objects import ObjectSpec
 
 ONE_DOF_XACRO = robots_dir() / "one_dof" / "urdf" / "one_dof_robot.xacro"

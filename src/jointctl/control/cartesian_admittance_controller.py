@@ -6,7 +6,7 @@ force-torque sensor. It is chained in front of one velocity controller per joint
 their commands) and runs inside the control loop, before them, every cycle::
 
     p, Jv, Jr  = flange position, translational and rotational Jacobians at the measured q
-                 (the robot's own model, :class:`~jointctl.sim.dynamics.RobotDynamics`)
+                 (the robot's own model, :class:`~jointctl.model.dynamics.RobotDynamics`)
     v          = Jv·q̇
     F          = R_sensor·force - F_tare          (sensed force in the base frame)
     f          = K·(p_att - p) - B·v + F          (virtual force at the flange, base frame)
@@ -60,6 +60,13 @@ passive. Without wrist joints ``T = I`` and it is exactly the chapter's formula.
 
 ``H`` is ``diag(inertia_estimate)`` (the chapter's estimate was diag(20, 20, 10, 10, 3) for
 joints 0-4), or the model's joint-space inertia ``M(q)`` with ``use_model_inertia: true``.
+
+Cost. The update runs every cycle, so it allocates no arrays and inverts nothing larger than
+3 x 3: the pose and Jacobians are views of the dynamics library's buffers, 3-vectors are floats,
+H's inverse is kept from the last change of gains, and with H diagonal the wrist's constrained
+dynamics are solved in the three dimensions of the flange's rotation (``_wrist_accelerations``:
+the same q̈_A as ``(Tᵀ·H·T)⁻¹·Tᵀ·(τ - c·q̇)``, to rounding). ``M(q)`` changes every cycle, so with
+``use_model_inertia`` it is factorised (Cholesky) every cycle.
 """
 
 from __future__ import annotations
@@ -68,14 +75,15 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-import mujoco
 import numpy as np
+from scipy.linalg.lapack import dposv
 
 from jointctl.control.controller import Controller, register_controller
 from jointctl.control.joint_controllers import JointVelocityController
 from jointctl.control.params import Params
 from jointctl.errors import ConfigError
 from jointctl.hardware.interface import HardwareInterface
+from jointctl.model.dynamics import RobotDynamics
 from jointctl.model.robot_model import RobotModel
 
 #: Damping of the least-squares inverse of the wrist's rotational Jacobian [rad].
@@ -83,92 +91,44 @@ WRIST_DLS_DAMPING = 0.01
 _CHAPTER_WRIST = (4, 5, 6)
 
 
-class FlangeKinematics:
-    """Flange position, orientation and Jacobians of a robot's own model (no world).
-
-    ``joints`` name the movable joints whose values are given (others stay at zero);
-    ``frame`` is the link whose origin is the flange; ``sensor_link`` the force sensor's link.
-    """
-
-    def __init__(self, robot: RobotModel, joints: Sequence[str], frame: str,
-                 sensor_link: str | None = None, gravity_m_s2=(0.0, 0.0, -9.81)) -> None:
-        from jointctl.sim.dynamics import RobotDynamics  # the model's dynamics, not the simulated world
-
-        self.dynamics = RobotDynamics(robot, gravity_m_s2)
-        m = self.model = self.dynamics.model
-        self.data = self.dynamics.data
-        names = self.dynamics.joint_names
-        self.qpos_adr = np.array([self.dynamics.qpos_adr[names.index(j)] for j in joints], dtype=int)
-        self.dof_adr = np.array([self.dynamics.dof_adr[names.index(j)] for j in joints], dtype=int)
-        self.frame_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, frame)
-        self.sensor_id = (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, sensor_link)
-                          if sensor_link is not None else self.frame_id)
-        self._jacp = np.zeros((3, m.nv))
-        self._jacr = np.zeros((3, m.nv))
-        self._full = np.zeros((m.nv, m.nv))
-
-    def set_pose(self, q, *, inertia: bool = False) -> None:
-        """Compute the kinematics at ``q`` (and the mass matrix when ``inertia``)."""
-        m, d = self.model, self.data
-        d.qpos[self.qpos_adr] = q
-        if inertia:
-            mujoco.mj_fwdPosition(m, d)
-        else:
-            mujoco.mj_kinematics(m, d)
-            mujoco.mj_comPos(m, d)
-
-    @property
-    def position(self) -> np.ndarray:
-        """Flange origin in the base (world) frame [m]."""
-        return self.data.xpos[self.frame_id].copy()
-
-    @property
-    def rotation(self) -> np.ndarray:
-        """Flange orientation: columns are its axes in the base frame."""
-        return self.data.xmat[self.frame_id].reshape(3, 3).copy()
-
-    @property
-    def sensor_rotation(self) -> np.ndarray:
-        """The force sensor frame's axes in the base frame."""
-        return self.data.xmat[self.sensor_id].reshape(3, 3).copy()
-
-    def jacobians(self) -> tuple[np.ndarray, np.ndarray]:
-        """Translational and rotational Jacobians (3 x n each) of the flange origin."""
-        mujoco.mj_jacBody(self.model, self.data, self._jacp, self._jacr, self.frame_id)
-        return self._jacp[:, self.dof_adr].copy(), self._jacr[:, self.dof_adr].copy()
-
-    def mass_matrix(self) -> np.ndarray:
-        """M(q) of the given joints at the last pose set with ``inertia=True`` [kg·m²]."""
-        mujoco.mj_fullM(self.model, self.data, self._full)
-        return self._full[np.ix_(self.dof_adr, self.dof_adr)].copy()
-
-    def positions(self, q_rows) -> np.ndarray:
-        """Flange positions (N x 3) for joint values ``q_rows`` (N x n)."""
-        out = np.empty((len(q_rows), 3))
-        for k, q in enumerate(q_rows):
-            self.set_pose(q)
-            out[k] = self.data.xpos[self.frame_id]
-        return out
-
-    def sensor_rotations(self, q_rows) -> np.ndarray:
-        """Sensor frame rotations (N x 3 x 3) for joint values ``q_rows``."""
-        out = np.empty((len(q_rows), 3, 3))
-        for k, q in enumerate(q_rows):
-            self.set_pose(q)
-            out[k] = self.data.xmat[self.sensor_id].reshape(3, 3)
-        return out
+def _quaternion(m0: float, m1: float, m2: float, m3: float, m4: float, m5: float, m6: float, m7: float,
+                m8: float) -> tuple[float, float, float, float]:
+    """The unit quaternion (w, x, y, z) of a rotation matrix given row by row (MuJoCo's
+    ``mju_mat2Quat``: from the largest component, then normalised)."""
+    if m0 + m4 + m8 > 0:
+        w = 0.5 * math.sqrt(1 + m0 + m4 + m8)
+        x, y, z = 0.25 * (m7 - m5) / w, 0.25 * (m2 - m6) / w, 0.25 * (m3 - m1) / w
+    elif m0 > m4 and m0 > m8:
+        x = 0.5 * math.sqrt(1 + m0 - m4 - m8)
+        w, y, z = 0.25 * (m7 - m5) / x, 0.25 * (m1 + m3) / x, 0.25 * (m2 + m6) / x
+    elif m4 > m8:
+        y = 0.5 * math.sqrt(1 - m0 + m4 - m8)
+        w, x, z = 0.25 * (m2 - m6) / y, 0.25 * (m1 + m3) / y, 0.25 * (m5 + m7) / y
+    else:
+        z = 0.5 * math.sqrt(1 - m0 - m4 + m8)
+        w, x, y = 0.25 * (m3 - m1) / z, 0.25 * (m2 + m6) / z, 0.25 * (m5 + m7) / z
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    if abs(norm - 1.0) > 1e-15:
+        inverse = 1.0 / norm
+        w, x, y, z = w * inverse, x * inverse, y * inverse, z * inverse
+    return w, x, y, z
 
 
-def rotation_vector(rotation: np.ndarray) -> np.ndarray:
-    """Axis times angle [rad] (angle in [0, π]) of a rotation matrix."""
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotation, dtype=float).ravel())
-    if quat[0] < 0:
-        quat = -quat
-    s = math.sqrt(quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
+def _rotation_vector(m0: float, m1: float, m2: float, m3: float, m4: float, m5: float, m6: float, m7: float,
+                     m8: float) -> tuple[float, float, float]:
+    w, x, y, z = _quaternion(m0, m1, m2, m3, m4, m5, m6, m7, m8)
+    if w < 0:
+        w, x, y, z = -w, -x, -y, -z
+    s = math.sqrt(x * x + y * y + z * z)
     if s < 1e-12:
-        return 2.0 * quat[1:]  # small-angle limit
-    return 2.0 * math.atan2(s, quat[0]) / s * quat[1:]
+        return 2.0 * x, 2.0 * y, 2.0 * z  # small-angle limit
+    k = 2.0 * math.atan2(s, w) / s
+    return k * x, k * y, k * z
+
+
+def rotation_vector(rotation) -> np.ndarray:
+    """Axis times angle [rad] (angle in [0, π]) of a rotation matrix."""
+    return np.array(_rotation_vector(*np.asarray(rotation, dtype=float).ravel().tolist()))
 
 
 def _vector(params: Params, key: str, length: int, default: Any = None, *, minimum: float | None = None,
@@ -295,11 +255,40 @@ class CartesianAdmittanceController(Controller):
                                            for lim in limits])
         self.max_velocity = self._max_velocity
         gravity = self.context.gravity_m_s2 if self.context is not None else (0.0, 0.0, -9.81)
-        self.kinematics = FlangeKinematics(robot, self.joint_names, self.frame, spec.link, gravity)
+        self.dynamics = RobotDynamics(robot, gravity, joints=self.joint_names)
+        self.flange = self.dynamics.frame(self.frame)
+        self.sensor_frame = self.dynamics.frame(spec.link)
         self.hardware = hardware
         self.wrench = hardware.wrenches[self.sensor]
-        self._A = np.array(self.arm_joints, dtype=int)
-        self._W = np.array(self.wrist_joints, dtype=int)
+        # Joint values straight from the hardware's lists when its joints are these, in order.
+        self._gather = None if self.indices == list(range(len(hardware.joint_names))) else self.indices
+        self._allocate()
+
+    def _allocate(self) -> None:
+        """The cycle's work buffers and constants (with H diagonal, update() allocates no arrays)."""
+        n, n_arm = len(self.joint_names), len(self.arm_joints)
+        self._qd = np.zeros(n)
+        self.velocity = np.zeros(3)          # flange velocity Jv·q̇, base frame [m/s]
+        self.torque = np.zeros(n)            # Jvᵀ·f [N·m]
+        self._generalized = np.zeros(n)      # τ - c·q̇ [N·m]
+        arm_then_wrist = self.arm_joints + self.wrist_joints
+        self._joint_order = [arm_then_wrist.index(k) for k in range(n)]  # where joint k is in that list
+        self._error_rotation = np.zeros((3, 3))
+        limit = self.max_velocity.tolist()
+        self._arm_limits = [(-limit[k], limit[k]) for k in self.arm_joints]
+        self._wrist_limits = [(-limit[k], limit[k]) for k in self.wrist_joints]
+        if self.use_model_inertia:
+            self._mass = np.zeros((n, n))
+            self._t = np.zeros((n, n_arm))  # T = [I; -P]
+            self._t[list(self.arm_joints), range(n_arm)] = 1.0
+        self._cache_gains()
+
+    def _cache_gains(self) -> None:
+        """The gains as floats for the cycle (after every change)."""
+        self._gains = (*self.stiffness.tolist(), *self.damping.tolist(), *self.attractor.tolist())
+        if self.inertia_estimate is not None:
+            self._inertia = self.inertia_estimate.tolist()
+            self._inverse_inertia = (1.0 / self.inertia_estimate).tolist()
 
     def bind_downstream(self, controllers: dict[str, Controller]) -> None:
         """Receive the velocity controllers this controller commands, one per joint, in order."""
@@ -332,35 +321,44 @@ class CartesianAdmittanceController(Controller):
             changes[name] = np.array(value, dtype=float)
         for name, value in changes.items():
             setattr(self, name, value)
+        if hasattr(self, "_gains"):  # configured
+            self._cache_gains()
 
     # -- the cycle ---------------------------------------------------------------------
     def _measure(self) -> None:
-        hw, idx = self.hardware, self.indices
-        position, velocity = hw.position, hw.velocity
-        self.q = np.array([position[i] for i in idx])
-        self.qd = np.array([velocity[i] for i in idx])
-        kin = self.kinematics
-        kin.set_pose(self.q, inertia=self.use_model_inertia)
-        self.position = kin.position
-        self.rotation = kin.rotation
-        self.jv, self.jr = kin.jacobians()
-        self.sensed_force = kin.sensor_rotation @ np.array(self.wrench[:3])  # base frame, before tare
+        """Joint state, the pose and Jacobians at it, and the sensed force in the base frame."""
+        hw, gather = self.hardware, self._gather
+        if gather is None:
+            position, self._qd[:] = hw.position, hw.velocity
+        else:
+            position = [hw.position[i] for i in gather]
+            self._qd[:] = [hw.velocity[i] for i in gather]
+        self.dynamics.set_pose(position, inertia=self.use_model_inertia)
+        self.jv, self.jr = self.flange.jacobians()
+        self.position = self.flange.position
+        self.rotation = self.flange.rotation
+        (r0, r1, r2), (r3, r4, r5), (r6, r7, r8) = self.sensor_frame.rotation.tolist()
+        w = self.wrench
+        w0, w1, w2 = w[0], w[1], w[2]
+        self.sensed_force = (r0 * w0 + r1 * w1 + r2 * w2, r3 * w0 + r4 * w1 + r5 * w2,
+                             r6 * w0 + r7 * w1 + r8 * w2)  # base frame, before tare
 
     def start(self, time_s: float) -> None:
         self.hardware.read()
         self._measure()
-        self.tare_force = self.sensed_force.copy() if self.tare else np.zeros(3)
+        self.tare_force = np.array(self.sensed_force) if self.tare else np.zeros(3)
+        self._tare = tuple(self.tare_force.tolist())
         self._tare_sum, self._tare_count = np.zeros(3), 0
         self._tare_until_s = time_s + self.tare_time_s if self.tare else -math.inf
-        self.target_rotation = self.rotation
-        self.orientation_error = np.zeros(3)
-        self.velocity_reference = np.zeros(len(self.arm_joints))
+        self.target_rotation = self.rotation.copy()
+        self.orientation_error = (0.0, 0.0, 0.0)
+        self.velocity_reference = [0.0] * len(self.arm_joints)
         self.velocity_command = [0.0] * len(self.joint_names)
 
     def inertia(self) -> np.ndarray:
         """H: the model's M(q) at the measured pose, or diag(inertia_estimate)."""
         if self.use_model_inertia:
-            return self.kinematics.mass_matrix()
+            return self.dynamics.mass_matrix()
         return np.diag(self.inertia_estimate)
 
     def update(self, time_s: float, period_s: float) -> None:
@@ -369,42 +367,153 @@ class CartesianAdmittanceController(Controller):
             self._tare_sum += self.sensed_force
             self._tare_count += 1
             self.tare_force = self._tare_sum / self._tare_count
+            self._tare = tuple(self.tare_force.tolist())
             for setter in self._setters:
                 setter(0.0)
             return
-        A, W = self._A, self._W
-        self.velocity = self.jv @ self.qd
-        self.force = self.sensed_force - self.tare_force
-        f = self.stiffness * (self.attractor - self.position) - self.damping * self.velocity + self.force
-        self.virtual_force = f
-        self.torque = self.jv.T @ f
-        generalized = self.torque - self.joint_damping * self.qd  # τ - c·q̇, per joint
-        if W.size:
-            jr_w, jr_a = self.jr[:, W], self.jr[:, A]
-            pinv = jr_w.T @ np.linalg.inv(jr_w @ jr_w.T + WRIST_DLS_DAMPING**2 * np.eye(3))
-            T = np.zeros((len(self.joint_names), len(A)))
-            T[A, np.arange(len(A))] = 1.0
-            T[W] = -pinv @ jr_a
-            h = T.T @ self.inertia() @ T
-            qdd = np.linalg.solve(h, T.T @ generalized)
-        elif self.use_model_inertia:
-            qdd = np.linalg.solve(self.inertia(), generalized)
+        qd, jv = self._qd, self.jv
+        vx, vy, vz = np.dot(jv, qd, out=self.velocity).tolist()
+        px, py, pz = self.position.tolist()
+        (sx, sy, sz), (tx, ty, tz) = self.sensed_force, self._tare
+        self.force = (sx - tx, sy - ty, sz - tz)
+        kx, ky, kz, bx, by, bz, ax, ay, az = self._gains
+        f = self.virtual_force = [kx * (ax - px) - bx * vx + (sx - tx),
+                                  ky * (ay - py) - by * vy + (sy - ty),
+                                  kz * (az - pz) - bz * vz + (sz - tz)]
+        np.dot(f, jv, out=self.torque)
+        generalized = np.multiply(self.joint_damping, qd, out=self._generalized)
+        np.subtract(self.torque, generalized, out=generalized)  # τ - c·q̇, per joint
+        if self.use_model_inertia:
+            qdd = self._model_accelerations(generalized)
+        elif self.wrist_joints:
+            qdd = self._wrist_accelerations(generalized.tolist())
         else:
-            qdd = generalized / self.inertia_estimate
+            qdd = [g / h for g, h in zip(generalized.tolist(), self._inertia)]
         self.acceleration = qdd
-        limit = self.max_velocity
-        ref = np.clip(self.velocity_reference + qdd * period_s, -limit[A], limit[A])  # once per cycle
-        self.velocity_reference = ref
-        command = np.zeros(len(self.joint_names))
-        command[A] = ref
-        if W.size:
-            self.orientation_error = rotation_vector(self.target_rotation @ self.rotation.T)
-            command[W] = np.clip(pinv @ (self.wrist_gain * self.orientation_error - jr_a @ ref),
-                                 -limit[W], limit[W])
-        commands = command.tolist()
-        self.velocity_command = commands
+        # q̇_cmd += q̈·dt once per cycle, within the limits
+        ref = self.velocity_reference = [
+            lower if r < lower else upper if r > upper else r
+            for r, (lower, upper) in zip([r + a * period_s for r, a in zip(self.velocity_reference, qdd)],
+                                         self._arm_limits)]
+        values = ref + self._wrist_command(ref) if self.wrist_joints else ref  # arm joints, then wrist joints
+        commands = self.velocity_command = [values[k] for k in self._joint_order]
         for setter, value in zip(self._setters, commands):
             setter(value)
 
+    # The wrist, with H diagonal, worked in the three dimensions of the flange's rotation. With
+    # G = Jr_W·Jr_Wᵀ + λ²·I and Jr_W⁺ = Jr_Wᵀ·G⁻¹ (row w: p_wᵀ, p_w = G⁻¹·jr_w), P = Jr_W⁺·Jr_A, so
+    #     Tᵀ·H·T = H_A + Pᵀ·H_W·P = H_A + Jr_Aᵀ·Q·Jr_A,   Q = Σ_w H_w·p_w·p_wᵀ,
+    #     Tᵀ·g   = g_A - Jr_Aᵀ·t,                         t = Σ_w g_w·p_w,
+    # and by the push-through identity (no inverse of Q: it is singular with fewer than three
+    # wrist joints, or where Jr_W is)
+    #     (H_A + Jr_Aᵀ·Q·Jr_A)⁻¹·x = u - H_A⁻¹·Jr_Aᵀ·Q·(I + K·Q)⁻¹·(Jr_A·u),   u = H_A⁻¹·x,
+    # with K = Jr_A·H_A⁻¹·Jr_Aᵀ: every inverse is of a 3 x 3 matrix, whatever the joints. The p_w
+    # are formed before any product with H_W or g_W: G⁻¹ alone is large (up to 1/λ²) along
+    # rotations the wrist cannot make, Jr_W⁺ is not.
+    def _wrist_accelerations(self, g: list[float]) -> list[float]:
+        """q̈_A with the wrist holding the flange orientation, H = diag(inertia_estimate)."""
+        jr = self.jr_columns = self.jr.T.tolist()  # per joint: its column of Jr
+        h, h_inverse = self._inertia, self._inverse_inertia
+        g00 = g01 = g02 = g11 = g12 = g22 = 0.0  # Jr_W·Jr_Wᵀ
+        for j in self.wrist_joints:
+            x, y, z = jr[j]
+            g00 += x * x; g01 += x * y; g02 += x * z; g11 += y * y; g12 += y * z; g22 += z * z  # noqa: E702
+        lam2 = WRIST_DLS_DAMPING**2
+        gi = _symmetric_inverse(g00 + lam2, g01, g02, g11 + lam2, g12, g22 + lam2)
+        self._dls_rows = rows = [_symmetric_times(gi, *jr[j]) for j in self.wrist_joints]  # the p_w
+        q00 = q01 = q02 = q11 = q12 = q22 = 0.0  # Q
+        t0 = t1 = t2 = 0.0                       # t
+        for j, (x, y, z) in zip(self.wrist_joints, rows):
+            gj, hx, hy, hz = g[j], h[j] * x, h[j] * y, h[j] * z
+            q00 += hx * x; q01 += hx * y; q02 += hx * z; q11 += hy * y; q12 += hy * z; q22 += hz * z  # noqa: E702
+            t0 += gj * x; t1 += gj * y; t2 += gj * z  # noqa: E702
+        k00 = k01 = k02 = k11 = k12 = k22 = 0.0  # K
+        y0 = y1 = y2 = 0.0                       # Jr_A·u
+        u = []
+        for j in self.arm_joints:
+            x, y, z = jr[j]
+            hi = h_inverse[j]
+            uj = (g[j] - (x * t0 + y * t1 + z * t2)) * hi
+            u.append(uj)
+            y0 += x * uj; y1 += y * uj; y2 += z * uj  # noqa: E702
+            hx, hy, hz = hi * x, hi * y, hi * z
+            k00 += hx * x; k01 += hx * y; k02 += hx * z; k11 += hy * y; k12 += hy * z; k22 += hz * z  # noqa: E702
+        w0, w1, w2 = _solve3(  # (I + K·Q)·w = Jr_A·u
+            1.0 + k00 * q00 + k01 * q01 + k02 * q02, k00 * q01 + k01 * q11 + k02 * q12,
+            k00 * q02 + k01 * q12 + k02 * q22,
+            k01 * q00 + k11 * q01 + k12 * q02, 1.0 + k01 * q01 + k11 * q11 + k12 * q12,
+            k01 * q02 + k11 * q12 + k12 * q22,
+            k02 * q00 + k12 * q01 + k22 * q02, k02 * q01 + k12 * q11 + k22 * q12,
+            1.0 + k02 * q02 + k12 * q12 + k22 * q22, y0, y1, y2)
+        z0, z1, z2 = _symmetric_times((q00, q01, q02, q11, q12, q22), w0, w1, w2)
+        return [uj - (x * z0 + y * z1 + z * z2) * h_inverse[j]
+                for uj, j, (x, y, z) in zip(u, self.arm_joints, (jr[j] for j in self.arm_joints))]
 
-__all__ = ["CartesianAdmittanceController", "FlangeKinematics", "rotation_vector"]
+    def _model_accelerations(self, generalized: np.ndarray) -> list[float]:
+        """q̈_A with H = M(q), the model's inertia: ``(Tᵀ·M·T)·q̈_A = Tᵀ·g``, T = [I; -P]."""
+        mass = self.dynamics.mass_matrix(self._mass)
+        if not self.wrist_joints:
+            return _solve_spd(mass, generalized).tolist()
+        jr = self.jr
+        self.jr_columns = jr.T.tolist()
+        arm, wrist = list(self.arm_joints), list(self.wrist_joints)
+        jr_w = jr[:, wrist]
+        dls = np.linalg.solve(jr_w @ jr_w.T + WRIST_DLS_DAMPING**2 * np.eye(3), jr_w).T  # Jr_W⁺
+        self._dls_rows = dls.tolist()
+        t = self._t
+        t[wrist] = -dls @ jr[:, arm]  # -P
+        return _solve_spd(t.T @ mass @ t, t.T @ generalized).tolist()
+
+    def _wrist_command(self, ref: list[float]) -> list[float]:
+        """``q̇_W = Jr_W⁺·(k·e - Jr_A·q̇_A)``, within the limits: the flange's rotation by the arm joints
+        cancelled, any orientation error e decaying at the wrist gain k."""
+        (m0, m1, m2), (m3, m4, m5), (m6, m7, m8) = np.dot(self.target_rotation, self.rotation.T,
+                                                          out=self._error_rotation).tolist()
+        e0, e1, e2 = self.orientation_error = _rotation_vector(m0, m1, m2, m3, m4, m5, m6, m7, m8)
+        k, jr = self.wrist_gain, self.jr_columns
+        b0, b1, b2 = k * e0, k * e1, k * e2
+        for j, r in zip(self.arm_joints, ref):
+            x, y, z = jr[j]
+            b0 -= x * r; b1 -= y * r; b2 -= z * r  # noqa: E702
+        out = []
+        for (x, y, z), (lower, upper) in zip(self._dls_rows, self._wrist_limits):  # Jr_W⁺·b, row by row
+            c = x * b0 + y * b1 + z * b2
+            out.append(lower if c < lower else upper if c > upper else c)
+        return out
+
+
+# -- 3 x 3 arithmetic on floats (symmetric matrices as their upper triangle a00 a01 a02 a11 a12 a22) --
+def _symmetric_inverse(a00: float, a01: float, a02: float, a11: float, a12: float,
+                       a22: float) -> tuple[float, ...]:
+    """The inverse of a symmetric positive definite 3 x 3 matrix (adjugate over determinant)."""
+    c00, c01, c02 = a11 * a22 - a12 * a12, a02 * a12 - a01 * a22, a01 * a12 - a02 * a11
+    c11, c12, c22 = a00 * a22 - a02 * a02, a01 * a02 - a00 * a12, a00 * a11 - a01 * a01
+    d = 1.0 / (a00 * c00 + a01 * c01 + a02 * c02)
+    return c00 * d, c01 * d, c02 * d, c11 * d, c12 * d, c22 * d
+
+
+def _symmetric_times(a: Sequence[float], x0: float, x1: float, x2: float) -> tuple[float, float, float]:
+    """``A·x`` for a symmetric A."""
+    a00, a01, a02, a11, a12, a22 = a
+    return (a00 * x0 + a01 * x1 + a02 * x2, a01 * x0 + a11 * x1 + a12 * x2, a02 * x0 + a12 * x1 + a22 * x2)
+
+
+def _solve3(m00: float, m01: float, m02: float, m10: float, m11: float, m12: float, m20: float, m21: float,
+            m22: float, b0: float, b1: float, b2: float) -> tuple[float, float, float]:
+    """``M⁻¹·b`` for an invertible 3 x 3 matrix M (Cramer's rule)."""
+    c00, c10, c20 = m11 * m22 - m12 * m21, m12 * m20 - m10 * m22, m10 * m21 - m11 * m20
+    d = 1.0 / (m00 * c00 + m01 * c10 + m02 * c20)
+    return ((c00 * b0 + (m02 * m21 - m01 * m22) * b1 + (m01 * m12 - m02 * m11) * b2) * d,
+            (c10 * b0 + (m00 * m22 - m02 * m20) * b1 + (m02 * m10 - m00 * m12) * b2) * d,
+            (c20 * b0 + (m01 * m20 - m00 * m21) * b1 + (m00 * m11 - m01 * m10) * b2) * d)
+
+
+def _solve_spd(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``matrix⁻¹·rhs`` for a symmetric positive definite ``matrix`` (LAPACK's Cholesky solve)."""
+    _, solution, info = dposv(matrix, rhs)
+    if info != 0:  # as numpy's solve would: the loop's failure policy stops the controller
+        raise np.linalg.LinAlgError(f"not positive definite (LAPACK dposv info {info})")
+    return solution
+
+
+__all__ = ["CartesianAdmittanceController", "rotation_vector"]

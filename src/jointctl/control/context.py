@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from jointctl.hardware.interface import HardwareInterface
+from jointctl.model.dynamics import RobotDynamics
 from jointctl.model.robot_model import RobotModel
 
 
@@ -26,8 +27,6 @@ class ModelFeedforward:
     """
 
     def __init__(self, context: ControlContext) -> None:
-        from jointctl.sim.dynamics import RobotDynamics  # the model's dynamics, not the simulated world
-
         self.context = context
         self.dynamics = RobotDynamics(context.robot, context.gravity_m_s2)
         hw_names = context.hardware.joint_names

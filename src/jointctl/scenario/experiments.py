@@ -15,10 +15,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import mujoco
 import numpy as np
 
+from jointctl.control.cartesian_admittance_controller import CartesianAdmittanceController
 from jointctl.errors import ConfigError
+from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.minimal_robot_analysis import analyse_minimal_robot_trajectory
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import flatten
@@ -50,23 +51,17 @@ class JointPlant:
 
 
 def joint_plant(session: Session, joint: str) -> JointPlant:
-    world = session.world
-    m, d = world.model, world.data
-    jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, joint)
-    body = m.jnt_bodyid[jid]
-    mujoco.mj_forward(m, d)
-    if m.jnt_type[jid] == mujoco.mjtJoint.mjJNT_SLIDE:
-        mass = float(m.body_subtreemass[body])
-    else:  # inertia about the axis, from the joint-space mass matrix
-        full = np.zeros((m.nv, m.nv))
-        mujoco.mj_fullM(m, d, full)
-        dof = m.jnt_dofadr[jid]
-        mass = float(full[dof, dof])
-    axis = np.array(d.xaxis[jid])
-    gravity = float(np.dot(m.opt.gravity, axis))
-    controller = session.manager.commanding(joint)
-    gains = controller.pid.gains
-    return JointPlant(mass, float(m.dof_damping[m.jnt_dofadr[jid]]), gravity, gains.p, gains.d)
+    """The plant of ``joint`` from the robot's dynamics at the pose the run ended in, under the
+    scenario's gravity: the joint-space inertia's diagonal entry is the mass (prismatic) or the
+    inertia about the axis (revolute) the joint moves, armature included."""
+    hardware = session.hardware
+    dynamics = RobotDynamics(session.robot, session.scenario.gravity_m_s2, joints=hardware.joint_names)
+    dynamics.set_pose(hardware.position)
+    k = dynamics.joint_names.index(joint)
+    mass = float(dynamics.mass_matrix()[k, k])
+    gravity = float(np.dot(session.scenario.gravity_m_s2, dynamics.joint_axis(joint)))
+    gains = session.manager.commanding(joint).pid.gains
+    return JointPlant(mass, float(dynamics.damping[k]), gravity, gains.p, gains.d)
 
 
 def _command_config(session: Session, joint: str) -> dict[str, Any]:
@@ -428,11 +423,6 @@ def analyse_nac_catch(session: Session, trace: Trace, out: Path, params: dict[st
     The weight's final position, in the flange frame, must be over the plate and at the
     height of resting on it (``weight_on_plate``).
     """
-    from jointctl.control.cartesian_admittance_controller import (
-        CartesianAdmittanceController,
-        FlangeKinematics,
-    )
-
     sensor, weight = _sensor(session, params), _object(session, params)
     nac = session.manager.controller(params.get("controller", ""))
     if not isinstance(nac, CartesianAdmittanceController):
@@ -441,14 +431,14 @@ def analyse_nac_catch(session: Session, trace: Trace, out: Path, params: dict[st
     window_s = float(params.get("steady_window_s", STEADY_WINDOW_S))
     chapter_damping = [float(b) for b in params.get("chapter_damping", [10.0, 10.0, 10.0])]
     sensor_link = next(s for s in session.robot.sensors if s.name == sensor).link
-    kinematics = FlangeKinematics(session.robot, nac.joint_names, nac.frame, sensor_link)
+    dynamics = RobotDynamics(session.robot, joints=nac.joint_names)  # the robot's own model
 
     def catch(run: Trace, rest: np.ndarray | None = None) -> dict[str, Any]:
         t = run.time_s
         q = np.column_stack([run.joint(j, "position") for j in nac.joint_names])
-        p = kinematics.positions(q)
+        p, _ = dynamics.poses(nac.frame, q)
         sensed = np.column_stack([run[f"{sensor}.force_{a}"] for a in "xyz"])
-        force = np.einsum("nij,nj->ni", kinematics.sensor_rotations(q), sensed) - nac.tare_force
+        force = np.einsum("nij,nj->ni", dynamics.poses(sensor_link, q)[1], sensed) - nac.tare_force
         steady = t >= t[-1] - window_s
         before = (t < weight.spawn_at_s) & (t >= weight.spawn_at_s - 0.1)
         if rest is None:
@@ -480,9 +470,10 @@ def analyse_nac_catch(session: Session, trace: Trace, out: Path, params: dict[st
     expected_sag = (main["unloaded_force"][2] - main["steady_force"][2]) / nac.stiffness[2]
 
     # Where the weight ended, in the flange frame, against the plate's top and radius.
-    kinematics.set_pose([trace.joint(j, "position")[-1] for j in nac.joint_names])
+    dynamics.set_pose([trace.joint(j, "position")[-1] for j in nac.joint_names], inertia=False)
+    flange = dynamics.frame(nac.frame)
     weight_p, _ = session.world.body_pose(weight.name)
-    offset = kinematics.rotation.T @ (weight_p - kinematics.position)
+    offset = flange.rotation.T @ (weight_p - flange.position)
     plate = next((c for c in session.robot.link(sensor_link).collisions if c.geometry.kind == "cylinder"),
                  None)
     plate_top = plate.origin.xyz[2] + plate.geometry.length_m / 2 if plate else 0.0
