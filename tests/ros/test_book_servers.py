@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from jointctl.model.loader import load_robot_model
-from jointctl.scenario.minimal_robot_analysis import pendulum_theory
+from jointctl.scenario.analyses.minimal_robot import pendulum_theory
 from jointctl.trajectory.timing import chapter_timing
 from tests.ros.conftest import joint_positions, run, settle_to
 

@@ -20,7 +20,7 @@ import math
 import numpy as np
 import pytest
 
-from jointctl.scenario.experiments import nac_loaded_decay_rate
+from jointctl.scenario.analyses.nac import nac_loaded_decay_rate
 from jointctl.scenario.run import run_scenario
 from jointctl.scenario.spec import load_scenario
 

@@ -31,7 +31,7 @@ import yaml
 from jointctl.model import load_robot_model
 from jointctl.model.robot_model import Inertial, Joint, Link, Pose, RobotModel
 from jointctl.paths import robots_dir
-from jointctl.scenario.minimal_robot_analysis import (
+from jointctl.scenario.analyses.minimal_robot import (
     PendulumTheory,
     fit_local_dynamics,
     pendulum_theory,

@@ -8,7 +8,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from jointctl.scenario.experiments import check_analysis
+from jointctl.scenario.analyses import check_analysis
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario, builtin_scenarios, load_scenario
 from jointctl.tools.recorder import load_trace

@@ -43,9 +43,9 @@ import numpy as np
 
 from jointctl.control.joint_controllers import wrap_angle
 from jointctl.errors import ConfigError, ControllerError
+from jointctl.model.mjcf import rpy_to_matrix
 from jointctl.model.robot_model import RobotModel
 from jointctl.scenario.session import Session
-from jointctl.sim.mjcf_builder import rpy_to_matrix
 from jointctl.tools import figures
 from jointctl.tools.recorder import Trace
 from jointctl.trajectory.executor import TrajectoryExecutor

@@ -1,0 +1,60 @@
+"""Turn a recorded run into metrics and figures, with the theory they are compared to.
+
+A scenario's ``analysis`` names one of :data:`ANALYSES`. Each analysis reads the trace, writes PNG
+figures into the output folder and returns the metrics (measured figures plus an ``expected``
+mapping of the same keys computed from the model: moving mass, joint damping, controller gains,
+gravity). Each experiment's analysis is the module beside it; what they share is
+:mod:`jointctl.scenario.analyses.common`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from jointctl.errors import ConfigError
+from jointctl.scenario.analyses.arm import analyse_arm_pose
+from jointctl.scenario.analyses.common import analysed_joint
+from jointctl.scenario.analyses.drop_weight import analyse_drop_weight
+from jointctl.scenario.analyses.minimal_robot import analyse_minimal_robot_trajectory
+from jointctl.scenario.analyses.nac import analyse_nac_drop
+from jointctl.scenario.analyses.nac_catch import analyse_nac_catch
+from jointctl.scenario.analyses.sine import analyse_sine, analyse_velocity_sine
+from jointctl.scenario.analyses.step import analyse_step
+from jointctl.scenario.analyses.trajectory import analyse_trajectory_tracking
+from jointctl.scenario.session import Session
+from jointctl.tools.recorder import Trace
+
+Analysis = Callable[[Session, Trace, Path, dict[str, Any]], dict[str, Any]]
+
+#: Every analysis a scenario may name: ``type: (function, whether analysis.joint must name a joint)``.
+ANALYSES: dict[str, tuple[Analysis, bool]] = {
+    "step_response": (analyse_step, True),
+    "sine_response": (analyse_sine, True),
+    "velocity_sine_response": (analyse_velocity_sine, True),
+    "drop_weight": (analyse_drop_weight, True),
+    "nac_drop": (analyse_nac_drop, True),
+    "nac_catch": (analyse_nac_catch, False),
+    "trajectory_tracking": (analyse_trajectory_tracking, True),
+    "arm_pose": (analyse_arm_pose, False),
+    "minimal_robot_trajectory": (analyse_minimal_robot_trajectory, False),
+}
+
+
+def check_analysis(session: Session) -> Analysis | None:
+    """The scenario's analysis function, checked before the run starts."""
+    spec = session.scenario.analysis
+    if spec is None:
+        return None
+    entry = ANALYSES.get(spec["type"])
+    if entry is None:
+        raise ConfigError(f"unknown analysis (known: {', '.join(ANALYSES)})",
+                          source=session.scenario.source, field="analysis.type", value=spec["type"])
+    analyse, names_a_joint = entry
+    if names_a_joint:
+        analysed_joint(session, spec)
+    return analyse
+
+
+__all__ = ["ANALYSES", "Analysis", "check_analysis"]

@@ -1,0 +1,61 @@
+"""The 7-DOF arm moved to a pose in jointctl's default, the chapter's streamer mode and with velocity
+feed-forward only; and its droop without gravity compensation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from jointctl.errors import ConfigError
+from jointctl.scenario.analyses.common import rms_tracking_error, run_variant
+from jointctl.scenario.session import Session
+from jointctl.tools import figures
+from jointctl.tools.recorder import Trace
+
+
+def analyse_arm_pose(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
+    """The arm moved to a pose in jointctl's default, in the chapter's streamer mode and with
+    velocity feed-forward only; and the droop of the pose without gravity compensation."""
+    if not session.goals:
+        raise ConfigError("the analysis needs an accepted trajectory goal", source=session.scenario.source,
+                          field="goals")
+    goal = session.goals[0]
+    joints = goal.validated.joint_names
+    start = goal.validated.start_time_s + float(goal.validated.times_s[0])  # the first point: the pose it leaves
+    end = goal.validated.start_time_s + float(goal.validated.times_s[-1])
+    variants = {name: run_variant(session, out / name, params.get(name) or {})
+                for name in ("chapter_mode", "velocity_ff")}
+    final = np.array([trace.joint(j, "position")[-1] for j in joints])
+    target = goal.validated.positions[-1]
+    metrics: dict[str, Any] = {
+        "duration_s": end - start,
+        "result": goal.status.value,
+        "rms_tracking_error_rad_chapter_mode": rms_tracking_error(variants["chapter_mode"], joints, start, end),
+        "rms_tracking_error_rad_velocity_ff": rms_tracking_error(variants["velocity_ff"], joints, start, end),
+        "rms_tracking_error_rad_feedforward": rms_tracking_error(trace, joints, start, end),
+        "final_error_rad": float(np.max(np.abs(final - target))),
+    }
+    metrics["error_reduction"] = (metrics["rms_tracking_error_rad_chapter_mode"]
+                                  / metrics["rms_tracking_error_rad_feedforward"])
+    t = trace.time_s
+    name = session.scenario.name
+    for label, run in (("jointctl", trace), *variants.items()):
+        figures.plot_series(out / f"tracking_error_{label}.png", t,
+                            {j: run.joint(j, "command") - run.joint(j, "position") for j in joints},
+                            title=f"{name}: tracking error, {label.replace('_', ' ')}",
+                            ylabel="reference - position [rad]")
+    droop_params = params.get("uncompensated")
+    if droop_params is not None:
+        pose = dict(zip(joints, target.tolist()))
+        droop = run_variant(session, out / "uncompensated", droop_params, goals=(),
+                             initial_positions=pose, duration_s=float(params.get("droop_duration_s", 10.0)))
+        sag = np.array([droop.joint(j, "position")[-1] for j in joints]) - target
+        metrics["uncompensated_droop_rad"] = float(np.max(np.abs(sag)))
+        metrics["uncompensated_droop_by_joint_rad"] = sag.tolist()
+        figures.plot_series(out / "uncompensated_droop.png", droop.time_s,
+                            {j: droop.joint(j, "position") for j in joints},
+                            title=f"{name}: holding the pose without gravity compensation",
+                            ylabel="joint angle [rad]")
+    return metrics

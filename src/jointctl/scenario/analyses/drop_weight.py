@@ -1,0 +1,62 @@
+"""A weight dropped on the position-controlled robot (figure 11.5): impacts, peak and steady forces."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from jointctl.scenario.analyses.common import (
+    CONTACT_THRESHOLD_N,
+    STEADY_WINDOW_S,
+    analysed_joint,
+    analysed_sensor,
+    dropped_object,
+    joint_plant,
+    sensor_link_mass,
+)
+from jointctl.scenario.session import Session
+from jointctl.tools import figures
+from jointctl.tools.recorder import Trace
+
+
+def contact_episodes(force_z: np.ndarray, unloaded_n: float) -> int:
+    """Separate contact episodes: times the sensed load rises above the threshold."""
+    loaded = np.abs(force_z - unloaded_n) > CONTACT_THRESHOLD_N
+    return int(np.count_nonzero(loaded[1:] & ~loaded[:-1]) + (1 if loaded[0] else 0))
+
+
+def analyse_drop_weight(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
+    """A weight dropped on the position-controlled robot: impacts, peak and steady forces (fig. 11.5)."""
+    joint, sensor = analysed_joint(session, params), analysed_sensor(session, params)
+    weight = dropped_object(session)
+    t = trace.time_s
+    effort, position = trace.joint(joint, "effort"), trace.joint(joint, "position")
+    force_z = trace[f"{sensor}.force_z"]
+    steady = t >= t[-1] - STEADY_WINDOW_S
+    before = (t < weight.spawn_at_s) & (t >= weight.spawn_at_s - 0.1)
+    plant = joint_plant(session, joint)
+    g = -plant.gravity_along_axis_m_s2
+    plate = sensor_link_mass(session, sensor)
+    expected_effort = (plant.moving_mass_kg + weight.mass_kg) * g
+    metrics = {
+        "impacts": contact_episodes(force_z, float(force_z[before].mean())),
+        "peak_sensor_force_n": float(np.max(np.abs(force_z))),
+        "steady_effort_n": float(effort[steady].mean()),
+        "steady_sensor_force_z_n": float(force_z[steady].mean()),
+        "steady_position_m": float(position[steady].mean()),
+        "expected": {
+            "steady_effort_n": expected_effort,
+            "steady_sensor_force_z_n": -(weight.mass_kg + plate) * g,
+            "steady_position_m": float(trace.joint(joint, "command")[-1]) - expected_effort / plant.kp,
+        },
+        "plant": plant.__dict__,
+    }
+    name = session.scenario.name
+    figures.plot_series(out / "effort_and_force.png", t,
+                        {f"{joint} effort [N]": effort, f"{sensor} force z [N]": force_z},
+                        title=f"{name}: actuator effort and sensed force", ylabel="force [N]")
+    figures.plot_command_and_position(out / "position.png", t, trace.joint(joint, "command"), position,
+                                      title=f"{name}: {joint} position")
+    return metrics
