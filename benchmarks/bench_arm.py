@@ -1,9 +1,12 @@
-"""The 7-DOF arm executing a trajectory with seven position controllers at 1 kHz.
+"""The 7-DOF arm at 1 kHz: a trajectory with seven position controllers, and the Cartesian NAC.
 
 *Bare loop*: the arm's compiled MuJoCo model, a PD law for the seven joints inline in numpy,
 ``mj_step`` per millisecond. *Whole stack*: the arm7dof_streamer scenario executing the move to
 the pre-pose: trajectory executor, model feed-forward (gravity, damping, inertia), seven PID
-position controllers; without and with the trace recorder. Runs interleaved.
+position controllers; without and with the trace recorder. *Cartesian NAC*: the whole
+arm7dof_nac_catch scenario (32 s: the admittance controller chained in front of seven velocity
+loops, the weight dropped at 10 s and held), without the recorder; and the controller's own
+update at the run's final state (the cost it adds to every cycle). Runs interleaved.
 """
 
 from __future__ import annotations
@@ -22,6 +25,8 @@ from jointctl.scenario.spec import load_scenario
 SECONDS = 10.0
 REPEATS = 3
 PRE_POSE = [[0, 1, 0, -2, 0, 1, 0]]
+NAC_CONTROLLER = "arm7dof_nac_controller"
+UPDATE_CALLS = 20_000
 
 
 def bare_loop(scenario) -> float:
@@ -50,18 +55,41 @@ def whole_stack(scenario, record: bool) -> float:
     return rtf
 
 
+def cartesian_nac(scenario) -> tuple[float, float]:
+    """Real-time factor of the whole NAC scenario, and the controller's update [µs] at its end."""
+    session = Session(scenario)
+    start = time.perf_counter()
+    session.loop.run(scenario.duration_s)
+    rtf = scenario.duration_s / (time.perf_counter() - start)
+    nac, now, period = session.manager.controller(NAC_CONTROLLER), session.loop.time_s, session.loop.period_s
+    start = time.perf_counter()
+    for _ in range(UPDATE_CALLS):
+        nac.update(now, period)  # the same state every call: the cost, not the dynamics
+    update_us = (time.perf_counter() - start) / UPDATE_CALLS * 1e6
+    session.close()
+    return rtf, update_us
+
+
 def run() -> list[Result]:
     scenario = load_scenario("arm7dof_streamer", ["record.every=1"])
-    bare, stack, recorded = [], [], []
+    nac_scenario = load_scenario("arm7dof_nac_catch", [])
+    bare, stack, recorded, nac, nac_update = [], [], [], [], []
     for _ in range(REPEATS):
         bare.append(bare_loop(scenario))
         stack.append(whole_stack(scenario, record=False))
         recorded.append(whole_stack(scenario, record=True))
-    bare_rtf, stack_rtf, rec_rtf = map(statistics.median, (bare, stack, recorded))
+        rtf, update_us = cartesian_nac(nac_scenario)
+        nac.append(rtf)
+        nac_update.append(update_us)
+    bare_rtf, stack_rtf, rec_rtf, nac_rtf, nac_us = map(statistics.median, (bare, stack, recorded, nac, nac_update))
     name = "arm7dof trajectory"
     return [
         Result(name, "bare MuJoCo arm loop (PD inline), real-time factor", bare_rtf, "x"),
         Result(name, "whole stack, real-time factor", stack_rtf, "x", ">= 50", stack_rtf >= 50),
         Result(name, "whole stack / bare loop", stack_rtf / bare_rtf, "ratio"),
         Result(name, "whole stack recording every cycle, real-time factor", rec_rtf, "x"),
+        Result("arm7dof Cartesian NAC", "arm7dof_nac_catch (32 s, catch included), real-time factor", nac_rtf, "x",
+               ">= 50", nac_rtf >= 50),
+        Result("arm7dof Cartesian NAC", "arm7dof_nac_catch / bare arm loop", nac_rtf / bare_rtf, "ratio"),
+        Result("arm7dof Cartesian NAC", "CartesianAdmittanceController.update, per cycle", nac_us, "µs"),
     ]
