@@ -63,11 +63,7 @@ def command_config(session: Session, joint: str) -> dict[str, Any]:
 
 def analysed_joint(session: Session, params: dict[str, Any]) -> str:
     """The joint ``analysis.joint`` names, checked against the hardware's joints."""
-    joint = params.get("joint")
-    if joint not in session.hardware.joint_names:
-        raise ConfigError("names no joint of the robot", source=session.scenario.source,
-                          field="analysis.joint", value=joint)
-    return joint
+    return _named(session, params, "joint", session.hardware.joint_names, "joint")
 
 
 def dropped_object(session: Session):
@@ -81,11 +77,15 @@ def dropped_object(session: Session):
 
 def analysed_sensor(session: Session, params: dict[str, Any]) -> str:
     """The force-torque sensor ``analysis.sensor`` names, checked against the hardware's sensors."""
-    sensor = params.get("sensor")
-    if sensor not in session.hardware.sensor_names:
-        raise ConfigError("names no force-torque sensor of the robot", source=session.scenario.source,
-                          field="analysis.sensor", value=sensor)
-    return sensor
+    return _named(session, params, "sensor", session.hardware.sensor_names, "force-torque sensor")
+
+
+def _named(session: Session, params: dict[str, Any], key: str, known, what: str) -> str:
+    value = params.get(key)
+    if value not in known:
+        raise ConfigError(f"names no {what} of the robot", source=session.scenario.source,
+                          field=f"analysis.{key}", value=value)
+    return value
 
 
 def sensor_link_mass(session: Session, sensor: str) -> float:
