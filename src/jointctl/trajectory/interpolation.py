@@ -19,6 +19,7 @@ the ``ValueError`` raised here is a programming guard.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, Literal
 
 import numpy as np
@@ -385,21 +386,37 @@ def build_interpolant(times_s: Any, positions: Any, velocities: Any = None, acce
     return Interpolant(resolved, t, p, vel, acc, coeffs)
 
 
-def sample_block(interpolant: Interpolant, t0: float, period_s: float,
-                 count: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+def sample_block(interpolant: Interpolant, t0: float | Sequence[float], period_s: float,
+                 count: int, *, out: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Sample ``count`` control cycles at ``t0 + k * period_s`` (s), k = 0..count-1.
 
-    Returns positions, velocities and accelerations, each (count, J).
+    ``t0`` may also be several blocks' first times: each block is sampled on its own grid
+    (``t0[b] + k * period_s``, the same values as sampling it alone) and the blocks follow
+    one another in the result. Returns positions, velocities and accelerations, each
+    (blocks·count, J). With ``out``, an array (blocks·count, J, 3), they are written there,
+    a cycle's row holding each joint's position, velocity and acceleration in turn (a control
+    loop reuses one buffer, block after block), and returned as views of it.
     """
     try:
-        start, period, n = float(t0), float(period_s), int(count)
+        starts = [float(t0)] if np.ndim(t0) == 0 else [float(x) for x in t0]  # type: ignore[union-attr]
+        period, n = float(period_s), int(count)
     except (TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"bad sample_block arguments: {exc}") from None
-    if not math.isfinite(start):
+    if not all(math.isfinite(x) for x in starts):
         raise ValueError(f"t0 must be finite, got {t0!r}")
     if not (math.isfinite(period) and period > 0.0):
         raise ValueError(f"period_s must be positive and finite, got {period_s!r}")
     if n != count or n < 0:
         raise ValueError(f"count must be a non-negative integer, got {count!r}")
-    out = interpolant._evaluate(start + period * np.arange(n, dtype=float), increasing=True)
-    return out[0].T, out[1].T, out[2].T
+    grid = period * np.arange(n, dtype=float)
+    if len(starts) == 1:
+        times, increasing = starts[0] + grid, True
+    else:  # blocks may overlap; rounding may put one block's last time after the next one's first
+        times, increasing = np.concatenate([x + grid for x in starts] or [grid[:0]]), None
+    if out is not None and out.shape != (times.size, interpolant.n_joints, 3):
+        raise ValueError(f"out must have shape ({times.size}, {interpolant.n_joints}, 3), got {out.shape}")
+    values = interpolant._evaluate(times, increasing=increasing)
+    if out is None:
+        return values[0].T, values[1].T, values[2].T
+    out[...] = values.transpose(2, 1, 0)  # evaluating into the strided rows directly is slower
+    return out[:, :, 0], out[:, :, 1], out[:, :, 2]

@@ -21,7 +21,8 @@ import numpy as np
 from jointctl.trajectory.interpolation import Interpolant, build_interpolant, sample_block
 from jointctl.trajectory.validation import ValidatedTrajectory
 
-BLOCK_CYCLES = 256  # references are sampled this many cycles at a time (vectorised)
+BLOCK_CYCLES = 256  # references are sampled on grids of this many cycles (vectorised)
+BLOCKS_AHEAD = 4  # blocks evaluated in one call when the loop's times allow (see Plan._sample_blocks)
 INTERPOLATIONS = ("linear", "cubic", "quintic", "auto")
 
 #: The desired positions, velocities and accelerations of every joint, in the executor's order.
@@ -44,9 +45,12 @@ class Plan:
         self._whole = len(parts) == 1 and np.array_equal(parts[0][1], np.arange(n_joints))
         self._block_t0 = start_s
         self._count = 0  # cycles in the block in hand (none yet)
-        self._block = b""
+        self._block = bytearray()  # rows of doubles: (cycles, joints, 3), reused block after block
+        self._rows: np.ndarray | None = None  # the same memory as an array
+        self._offset = 0  # bytes before the block in hand's first row
+        self._ahead: list[float] = []  # loop times at which the next blocks in _block start
         self._row_bytes = 3 * n_joints * 8
-        self._unpack = struct.Struct(f"={3 * n_joints}d").unpack_from
+        self._unpack = struct.Struct(f"@{3 * n_joints}d").unpack_from  # native, as numpy writes them
 
     @classmethod
     def splice(cls, goal: ValidatedTrajectory, state: State, start_s: float, time_s: float, *,
@@ -101,22 +105,53 @@ class Plan:
         cycle of ``period_s``, joint by joint: (q0, v0, a0, q1, v1, a1, ...)."""
         k = round((time_s - self._block_t0) / period_s) if period_s > 0 else -1
         if not 0 <= k < self._count:
-            self._sample_block(time_s, period_s)
+            self._next_block(time_s, period_s)
             k = 0
-        return self._unpack(self._block, k * self._row_bytes)
+        return self._unpack(self._block, self._offset + k * self._row_bytes)
 
-    def _sample_block(self, time_s: float, period_s: float) -> None:
-        """Sample the cycles from ``time_s`` on (one cycle when the period is not positive)."""
-        count = BLOCK_CYCLES if period_s > 0 else 1
-        step = period_s if period_s > 0 else 1.0
-        since_start = time_s - self.start_s
-        if self._whole:
-            q, v, a = sample_block(self.parts[0][0], since_start, step, count)
+    def _next_block(self, time_s: float, period_s: float) -> None:
+        """Make the block of cycles from ``time_s`` on the one in hand: sampled already if an earlier
+        evaluation predicted that a block starts at ``time_s``, else sampled now."""
+        if self._ahead and time_s == self._ahead[0]:
+            del self._ahead[0]
+            self._offset += BLOCK_CYCLES * self._row_bytes
+            self._block_t0 = time_s
+            return
+        self._sample_blocks(time_s, period_s)
+
+    def _sample_blocks(self, time_s: float, period_s: float) -> None:
+        """Sample ``BLOCK_CYCLES`` cycles from ``time_s`` on, each at ``time_s + k·period_s`` (one
+        cycle when the period is not positive).
+
+        The values depend on where a block starts (its grid), so a block always starts at the loop
+        time of the cycle that needs it. When ``time_s`` is a whole number of periods (the loop's
+        times are ``cycle·period_s``), the blocks that will follow, if the loop runs a cycle at a
+        time, start at ``(cycle + m·BLOCK_CYCLES)·period_s``: the very times the loop will pass.
+        ``BLOCKS_AHEAD`` blocks are then evaluated in one call; a later block is used only if the
+        loop does reach its start exactly (see :meth:`_next_block`).
+        """
+        since = time_s - self.start_s
+        if period_s > 0:
+            count, step, starts = BLOCK_CYCLES, period_s, [since]
+            cycle = round(time_s / period_s)
+            if cycle * period_s == time_s:
+                self._ahead = [(cycle + m * BLOCK_CYCLES) * period_s for m in range(1, BLOCKS_AHEAD)]
+                starts += [t - self.start_s for t in self._ahead]
+            else:
+                self._ahead = []
         else:
-            q, v, a = np.empty((3, count, self._n))
+            count, step, starts, self._ahead = 1, 1.0, [since], []
+        cycles = count * len(starts)
+        if self._rows is None or self._rows.shape[0] != cycles:
+            self._block = bytearray(cycles * self._row_bytes)
+            self._rows = np.frombuffer(self._block, dtype=float).reshape(cycles, self._n, 3)
+        if self._whole:
+            sample_block(self.parts[0][0], starts, step, count, out=self._rows)
+        else:
             for interp, columns in self.parts:
-                q[:, columns], v[:, columns], a[:, columns] = sample_block(interp, since_start, step, count)
-        self._block = np.stack((q, v, a), axis=-1).tobytes()  # (count, joints, 3) doubles
+                q, v, a = sample_block(interp, starts, step, count)
+                self._rows[:, columns, 0], self._rows[:, columns, 1], self._rows[:, columns, 2] = q, v, a
+        self._offset = 0
         self._block_t0 = time_s
         self._count = count
 
