@@ -4,7 +4,8 @@ The figures the chapter's code and a MuJoCo probe gave (chapter11-facts.md, sect
 chapter's timing takes 2 / (0.5 · 0.3) = 13.33 s; joint damping (1000 on joint 3 against Kp 500)
 dominates the lag, so velocity feed-forward through the PID's d term leaves the error about where
 it was (~100 mrad RMS), while damping and inertia feed-forward cut it by orders of magnitude;
-without gravity compensation the pre-pose droops about 0.76 rad.
+without gravity compensation (P and D alone) the pre-pose droops to where Kp·(-Δq) = g(q0 + Δq),
+the balance the model's dynamics library solves: 0.757 rad on joint 1.
 """
 
 from __future__ import annotations
@@ -45,9 +46,15 @@ def test_velocity_feedforward_alone_barely_helps(metrics):
     assert m["rms_tracking_error_rad_velocity_ff"] > 0.7 * m["rms_tracking_error_rad_chapter_mode"]
 
 
-def test_without_gravity_compensation_the_pose_droops(metrics):
+def test_without_gravity_compensation_the_pose_droops_to_the_static_balance(metrics):
     out, m = metrics
-    assert m["uncompensated_droop_rad"] == pytest.approx(0.76, abs=0.1)
+    # Theory: Kp·(-Δq) = g(q0 + Δq) per joint, g from the dynamics library (the analysis solves it).
+    # After 40 s the slowest mode (joint 3's b/Kp = 2 s, slowed by its coupling to the shoulder) has
+    # decayed to micro-radians; 0.1 mrad is 0.013 % of the largest droop.
+    expected = m["expected_uncompensated_droop_by_joint_rad"]
+    assert m["uncompensated_droop_by_joint_rad"] == pytest.approx(expected, abs=1e-4)
+    assert max(abs(d) for d in expected) > 0.5  # the shoulder sags by more than half a radian
+    assert m["uncompensated_droop_rad"] == pytest.approx(max(abs(d) for d in expected), abs=1e-4)
     assert (out / "uncompensated_droop.png").is_file()
     for name in ("jointctl", "chapter_mode", "velocity_ff"):
         assert (out / f"tracking_error_{name}.png").is_file()

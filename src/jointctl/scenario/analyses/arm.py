@@ -7,8 +7,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.optimize import fsolve
 
 from jointctl.errors import ConfigError
+from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.analyses.common import rms_tracking_error, run_variant
 from jointctl.scenario.session import Session
 from jointctl.tools import figures
@@ -54,8 +56,24 @@ def analyse_arm_pose(session: Session, trace: Trace, out: Path, params: dict[str
         sag = np.array([droop.joint(j, "position")[-1] for j in joints]) - target
         metrics["uncompensated_droop_rad"] = float(np.max(np.abs(sag)))
         metrics["uncompensated_droop_by_joint_rad"] = sag.tolist()
+        metrics["expected_uncompensated_droop_by_joint_rad"] = static_droop(session, joints, target).tolist()
         figures.plot_series(out / "uncompensated_droop.png", droop.time_s,
                             {j: droop.joint(j, "position") for j in joints},
                             title=f"{name}: holding the pose without gravity compensation",
                             ylabel="joint angle [rad]")
     return metrics
+
+
+def static_droop(session: Session, joints: tuple[str, ...], pose: np.ndarray) -> np.ndarray:
+    """Where position loops without gravity compensation (P and D only) hold ``pose`` [rad]: the
+    deflection Δq that solves ``Kp·(-Δq) = g(pose + Δq)`` joint by joint, with g from the robot's
+    dynamics library (the holding efforts, N·m) and Kp from the running controllers."""
+    dynamics = RobotDynamics(session.robot, session.scenario.gravity_m_s2, joints=joints)
+    kp = np.array([next(c for c in session.manager.active if c.joints == (j,) and hasattr(c, "pid")).pid.gains.p
+                   for j in joints])
+
+    def residual(q: np.ndarray) -> np.ndarray:
+        dynamics.set_pose(q, inertia=False)
+        return kp * (pose - q) - dynamics.gravity_at_pose()
+
+    return fsolve(residual, pose, xtol=1e-12) - pose
