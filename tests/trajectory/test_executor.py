@@ -25,6 +25,7 @@ from jointctl.scenario.spec import load_scenario
 from jointctl.trajectory.errors import InvalidTrajectory, TrajectoryErrorCode
 from jointctl.trajectory.executor import GoalResult, GoalStatus, TrajectoryExecutor, TrajectoryFeedback
 from jointctl.trajectory.messages import JointTrajectory, JointTrajectoryPoint
+from jointctl.trajectory.timing import PATH_MAX_ACCELERATION, PATH_MAX_JERK, PATH_VELOCITY_FRACTION, time_path
 
 TRAJ = "joint1_trajectory_controller"
 POS = "joint1_position_controller"
@@ -760,3 +761,35 @@ def test_a_partial_goal_during_a_move_does_not_freeze_the_omitted_joint(two_slid
     rates = [abs(trace.v_ref[i][0] - trace.v_ref[i - 1][0]) / DT for i in range(s, len(trace.t))]
     assert jump < 1e-6 or max(rates) <= 5.0 + 1e-6, (
         f"joint1's desired velocity steps {trace.v_ref[s - 1][0]} -> {trace.v_ref[s][0]} m/s in one cycle")
+
+
+# ----------------------------------------------------------------------------- path timing
+
+
+def test_plan_path_times_a_path_from_the_desired_pose_with_the_default_limits(two_slides):
+    session, executor = two_slides
+    session.loop.run(duration_s=0.1)
+    assert executor.path_velocity_fraction == PATH_VELOCITY_FRACTION
+    assert executor.max_acceleration == (PATH_MAX_ACCELERATION,) * 2
+    assert executor.max_jerk == (PATH_MAX_JERK,) * 2
+    vmax = [spec.max_velocity for spec in executor.specs]
+    for timing in ("ruckig", "chapter"):
+        planned = executor.plan_path([[-0.2, -0.3], [-0.4, -0.1]], timing=timing)
+        assert planned == time_path(("joint1", "joint2"), [-0.5, -0.6], [[-0.2, -0.3], [-0.4, -0.1]], vmax,
+                                    timing=timing)
+    one = executor.plan_path([[-0.2]], timing="chapter", joint_names=["joint2"])
+    assert one.joint_names == ("joint2",) and one.points[0].positions == (-0.6,)
+    done = Done()
+    executor.submit(executor.plan_path([[-0.2, -0.3]]), now_s=session.loop.time_s, on_done=done)
+    session.loop.run(duration_s=3.0)
+    assert done.only.status is GoalStatus.SUCCEEDED
+
+
+def test_plan_path_uses_the_executors_timing_parameters(write_scenario):
+    session = build(write_scenario, {TRAJ: {"path_velocity_fraction": 0.25, "max_acceleration": 3.0,
+                                            "max_jerk": {"joint1": 40.0}}})
+    executor = executor_of(session)
+    session.loop.run(cycles=1)
+    planned = executor.plan_path([[-0.1]])
+    assert planned == time_path(("joint1",), [-0.5], [[-0.1]], [executor.specs[0].max_velocity],
+                                velocity_fraction=0.25, max_acceleration=3.0, max_jerk=40.0)

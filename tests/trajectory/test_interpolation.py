@@ -207,6 +207,30 @@ def test_sample_block() -> None:
             sample_block(it, *bad)
 
 
+def test_sample_block_of_several_blocks_is_each_block_sampled_alone() -> None:
+    times, pos, vel, acc = _random_knots(8)
+    it = build_interpolant(times, pos, vel, acc)
+    starts = [0.25, 0.25 + 0.001 * 300, 0.9, 0.5]  # in any order, even overlapping
+    together = sample_block(it, starts, 0.001, 300)
+    alone = [sample_block(it, t0, 0.001, 300) for t0 in starts]
+    for got, want in zip(together, zip(*alone)):
+        np.testing.assert_array_equal(got, np.vstack(want))
+    assert sample_block(it, [], 0.001, 10)[0].shape == (0, 3)
+
+
+def test_sample_block_into_rows_of_position_velocity_acceleration() -> None:
+    times, pos, vel, acc = _random_knots(8)
+    it = build_interpolant(times, pos, vel, acc)
+    rows = np.empty((2 * 50, 3, 3))
+    p, v, a = sample_block(it, [0.3, 0.7], 0.002, 50, out=rows)
+    want = sample_block(it, [0.3, 0.7], 0.002, 50)
+    for k, (got, expected) in enumerate(zip((p, v, a), want)):
+        np.testing.assert_array_equal(rows[:, :, k], expected)
+        assert np.shares_memory(got, rows)
+    with pytest.raises(ValueError, match="out must have shape"):
+        sample_block(it, 0.3, 0.002, 50, out=rows)
+
+
 def test_arrays_are_read_only() -> None:
     it = build_interpolant([0.0, 1.0], [[0.0], [1.0]])
     with pytest.raises(ValueError):

@@ -7,7 +7,9 @@ import pytest
 import ruckig
 
 from jointctl.trajectory.interpolation import build_interpolant
-from jointctl.trajectory.timing import BLEND_VELOCITY_FRACTION, chapter_timing, ruckig_timing
+from jointctl.trajectory.timing import (BLEND_VELOCITY_FRACTION, PATH_MAX_ACCELERATION, PATH_MAX_JERK,
+                                        PATH_START_S, PATH_VELOCITY_FRACTION, chapter_timing, ruckig_timing,
+                                        time_path)
 
 CHAPTER_VMAX = np.array([0.17, 0.17, 0.3, 0.3, 0.4, 0.4, 0.4])
 AMAX = np.array([0.5, 0.5, 1.0, 1.0, 2.0, 2.0, 2.0])
@@ -208,3 +210,61 @@ def test_ruckig_bad_limits(limits, match) -> None:
 def test_ruckig_bad_input(path, kwargs) -> None:
     with pytest.raises(ValueError):
         ruckig_timing(path, 1.0, 1.0, 1.0, **kwargs)
+
+
+# --- time_path: the one way a path is timed from the current pose ---------------------------------
+
+ARM = tuple(f"joint{k}" for k in range(7))
+ARM_VMAX = [0.2, 0.2, 0.3, 0.3, 0.4, 0.5, 0.4]  # the arm's URDF
+
+
+def test_time_path_chapter_rule_starts_at_the_current_pose_start_s_after_sending() -> None:
+    current = [0.1] * 7
+    traj = time_path(ARM, current, [HOME], ARM_VMAX, timing="chapter")
+    assert traj.joint_names == ARM
+    times = [p.time_from_start_s for p in traj.points]
+    # Joint 3 sets the pace: 2.1 rad at PATH_VELOCITY_FRACTION of 0.3 rad/s.
+    np.testing.assert_allclose(times, [PATH_START_S, PATH_START_S + 2.1 / (PATH_VELOCITY_FRACTION * 0.3)])
+    assert traj.points[0].positions == tuple(current) and traj.points[-1].positions == tuple(HOME)
+    assert traj.points[0].velocities == ()  # positions only
+
+
+def test_time_path_of_some_joints_names_only_those() -> None:
+    current = [0.0] * 7
+    traj = time_path(ARM, current, [[0.5], [0.2]], ARM_VMAX, timing="chapter", path_joints=["joint5"],
+                     start_s=0.0, velocity_fraction=1.0)
+    assert traj.joint_names == ("joint5",)
+    np.testing.assert_allclose([p.time_from_start_s for p in traj.points], [0.0, 1.0, 1.6])  # 0.5/0.5, 0.3/0.5
+    assert [p.positions for p in traj.points] == [(0.0,), (0.5,), (0.2,)]
+
+
+def test_time_path_ruckig_is_ruckig_timing_from_the_current_pose_with_the_default_limits() -> None:
+    current = np.zeros(7)
+    traj = time_path(ARM, current, [HOME], ARM_VMAX)
+    times, positions, velocities, accelerations = ruckig_timing(
+        np.vstack((current, HOME)), np.array(ARM_VMAX) * PATH_VELOCITY_FRACTION, PATH_MAX_ACCELERATION,
+        PATH_MAX_JERK)
+    np.testing.assert_array_equal([p.time_from_start_s for p in traj.points], times + PATH_START_S)
+    np.testing.assert_array_equal([p.positions for p in traj.points], positions)
+    np.testing.assert_array_equal([p.velocities for p in traj.points], velocities)
+    np.testing.assert_array_equal([p.accelerations for p in traj.points], accelerations)
+
+
+def test_time_path_per_joint_limits_are_those_of_the_named_columns() -> None:
+    amax, jmax = np.linspace(0.5, 3.5, 7), np.linspace(5.0, 35.0, 7)
+    traj = time_path(ARM, np.zeros(7), [[0.3, -0.2]], ARM_VMAX, path_joints=["joint6", "joint1"],
+                     max_acceleration=amax, max_jerk=jmax, velocity_fraction=0.8, start_s=0.0)
+    times, positions, _, _ = ruckig_timing([[0.0, 0.0], [0.3, -0.2]], np.array([0.4, 0.2]) * 0.8,
+                                           amax[[6, 1]], jmax[[6, 1]])
+    np.testing.assert_array_equal([p.time_from_start_s for p in traj.points], times)
+    np.testing.assert_array_equal([p.positions for p in traj.points], positions)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"timing": "fast"}, "timing must be one of chapter, ruckig"),
+    ({"path_joints": ["joint9"]}, "not all among"),
+    ({"max_acceleration": [1.0, 2.0]}, "max_acceleration must be a scalar or have shape"),
+])
+def test_time_path_refuses_unknown_rules_joints_and_shapes(kwargs, match) -> None:
+    with pytest.raises(ValueError, match=match):
+        time_path(ARM, np.zeros(7), [HOME], ARM_VMAX, **kwargs)
