@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import sys
 
-from jointctl.control.controller import register_controller
+from jointctl.control.registry import register_controller
 from jointctl.control.joint_controllers import JointPositionController
 from jointctl.control.params import Params
 

@@ -24,7 +24,7 @@ from jointctl.control import (
     JointPositionController,
     JointVelocityController,
 )
-from jointctl.control import controller as controller_module
+from jointctl.control.registry import controller_types
 from jointctl.control.controller import Controller
 from jointctl.errors import ConfigError, ControllerError
 from jointctl.hardware.interface import EFFORT
@@ -535,11 +535,10 @@ class _Relay(Controller):
 @pytest.fixture
 def relay_manager(monkeypatch, sensor_hw, robot, write_yaml):
     """A manager with relays a -> b -> a and c -> c (loops), d -> a, next to the NAC file."""
-    monkeypatch.setitem(controller_module._TYPES, "test/Relay", _Relay)
     tree = definitions()
     for name, nxt in (("a", "b"), ("b", "a"), ("c", "c")):
         tree[NAMESPACE][name] = {"type": "test/Relay", "next": nxt}
-    manager = ControllerManager(sensor_hw, robot)
+    manager = ControllerManager(sensor_hw, robot, types={**controller_types(), "test/Relay": _Relay})
     manager.load_file(write_yaml(tree))
     return manager
 

@@ -20,7 +20,7 @@ import yaml
 
 from jointctl.control import CartesianAdmittanceController, ControllerManager, JointVelocityController
 from jointctl.control.cartesian_admittance_controller import rotation_vector
-from jointctl.control.controller import controller_types
+from jointctl.control.registry import controller_types
 from jointctl.errors import ConfigError, ControllerError
 from jointctl.hardware.interface import EFFORT
 from jointctl.model import load_robot_model

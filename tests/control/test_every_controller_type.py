@@ -9,7 +9,7 @@ import math
 import pytest
 import yaml
 
-from jointctl.control.controller import controller_types
+from jointctl.control.registry import controller_types
 from jointctl.paths import robots_dir
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import scenario_for_robot

@@ -167,4 +167,3 @@ def test_broadcaster_alias_is_the_same_controller() -> None:
     types = controller_types()
     assert types["joint_state_broadcaster/JointStateBroadcaster"] is JointStateController
     assert types[TYPE] is JointStateController
-    assert JointStateController.type_name == TYPE

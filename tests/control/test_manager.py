@@ -391,3 +391,14 @@ def test_position_control_of_the_mujoco_piston(robot) -> None:
     assert len(samples) == 150  # 50 Hz for 3 s
     assert samples[0].position == (pytest.approx(-0.2),)
     assert samples[-1].name == ("joint1",)
+
+
+def test_the_registry_lists_every_type_once_and_refuses_a_plugin_taking_a_built_in_name():
+    from jointctl.control.registry import BUILTIN_TYPES, controller_types, register_controller
+    from jointctl.trajectory.executor import TrajectoryExecutor
+
+    types = controller_types()
+    assert types["trajectory_controllers/JointTrajectoryExecutor"] is TrajectoryExecutor  # imported on first use
+    assert set(BUILTIN_TYPES) <= set(types)
+    with pytest.raises(ValueError, match="built-in"):
+        register_controller("effort_controllers/JointPositionController")(TrajectoryExecutor)

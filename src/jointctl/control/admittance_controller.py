@@ -24,7 +24,7 @@ fully stale case. Unset, a signal is read every cycle.
 from __future__ import annotations
 
 
-from jointctl.control.controller import Controller, register_controller
+from jointctl.control.controller import Controller
 from jointctl.control.joint_controllers import JointVelocityController
 from jointctl.control.params import Params
 from jointctl.errors import ConfigError
@@ -35,7 +35,6 @@ from jointctl.validate import finite_number
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
-@register_controller("admittance_controllers/AdmittanceController")
 class AdmittanceController(Controller):
     """Turns sensed force into a velocity reference for ``velocity_controller``."""
 

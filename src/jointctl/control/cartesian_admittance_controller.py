@@ -78,7 +78,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg.lapack import dposv
 
-from jointctl.control.controller import Controller, register_controller
+from jointctl.control.controller import Controller
 from jointctl.control.joint_controllers import JointVelocityController
 from jointctl.control.params import Params
 from jointctl.errors import ConfigError
@@ -173,7 +173,6 @@ def _names(params: Params, key: str, length: int | None = None) -> tuple[str, ..
     return tuple(value)
 
 
-@register_controller("admittance_controllers/CartesianAdmittanceController")
 class CartesianAdmittanceController(Controller):
     """Turns sensed force into joint velocity references for ``velocity_controllers``."""
 

@@ -1,4 +1,4 @@
-"""The controller contract and the registry of controller types.
+"""The controller contract (the types loadable from YAML are listed in :mod:`jointctl.control.registry`).
 
 A controller, like a ros_control plugin, is configured once against the
 hardware (it resolves its joint names to indices and keeps references to the
@@ -13,8 +13,6 @@ claim the same one. A controller may write another controller's command
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable
-from typing import ClassVar
 
 from jointctl.control.context import ControlContext
 from jointctl.control.params import Params
@@ -22,30 +20,10 @@ from jointctl.hardware.interface import HardwareInterface
 from jointctl.hardware.loan import HardwareLoan
 from jointctl.model.robot_model import RobotModel
 
-_TYPES: dict[str, type[Controller]] = {}
-
-
-def register_controller(*type_names: str) -> Callable[[type[Controller]], type[Controller]]:
-    """Class decorator: make a controller loadable under ros_control ``type`` names."""
-
-    def register(cls: type[Controller]) -> type[Controller]:
-        for name in type_names:
-            _TYPES[name] = cls
-        cls.type_name = type_names[0]
-        return cls
-
-    return register
-
-
-def controller_types() -> dict[str, type[Controller]]:
-    """The loadable controller types by their YAML ``type`` name."""
-    return dict(_TYPES)
-
 
 class Controller(ABC):
     """Base class of every controller run by the loop."""
 
-    type_name: ClassVar[str] = ""
     #: Joint names this controller commands; empty for broadcasters.
     joints: tuple[str, ...] = ()
     #: Names of the controllers whose command this one writes (chaining); they run after it.

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 from jointctl.control.context import ControlContext
-from jointctl.control.controller import Controller, register_controller
+from jointctl.control.controller import Controller
 from jointctl.control.params import Params
 from jointctl.control.pid import Pid, PidGains
 from jointctl.errors import ConfigError, InvalidCommand
@@ -96,7 +96,6 @@ def wrap_angle(angle: float) -> float:
     return wrapped
 
 
-@register_controller("effort_controllers/JointPositionController")
 class JointPositionController(_EffortJointController):
     """Effort from a PID on position error, plus optional model-based feed-forward.
 
@@ -195,7 +194,6 @@ class JointPositionController(_EffortJointController):
         self.effort_command[i] = effort
 
 
-@register_controller("effort_controllers/JointVelocityController")
 class JointVelocityController(_EffortJointController):
     """Effort from a PID on velocity error; ``d`` acts on the error's backward difference.
 

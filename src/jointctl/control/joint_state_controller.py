@@ -12,7 +12,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from jointctl.control.controller import Controller, register_controller
+from jointctl.control.controller import Controller
 from jointctl.control.params import Params
 from jointctl.hardware.interface import HardwareInterface
 from jointctl.model.robot_model import RobotModel
@@ -29,8 +29,6 @@ class JointStateSample:
     effort: tuple[float, ...]
 
 
-@register_controller("joint_state_controller/JointStateController",
-                     "joint_state_broadcaster/JointStateBroadcaster")
 class JointStateController(Controller):
     """Publishes every joint's state; claims no command interface."""
 

@@ -26,8 +26,9 @@ from typing import Any
 import yaml
 
 from jointctl.control.context import ControlContext
-from jointctl.control.controller import Controller, controller_types
+from jointctl.control.controller import Controller
 from jointctl.control.params import Params
+from jointctl.control.registry import controller_types
 from jointctl.errors import ConfigError, ControllerError, ControllerFailed
 from jointctl.hardware.interface import HardwareInterface
 from jointctl.hardware.loan import HardwareLoan
@@ -102,8 +103,9 @@ class ControllerManager:
                  types: Mapping[str, type[Controller]] | None = None) -> None:
         self.hardware = hardware
         self.robot = robot
-        #: The controller types this manager loads, by their YAML ``type`` name.
-        self.types = dict(controller_types() if types is None else types)
+        #: The controller types this manager loads, by their YAML ``type`` name (default: the
+        #: registry, jointctl.control.registry).
+        self.types = controller_types() if types is None else dict(types)
         self.context = ControlContext(hardware, robot, gravity_m_s2)
         self._definitions: dict[str, Params] = {}
         self._loaded: dict[str, Controller] = {}

@@ -27,7 +27,7 @@ from jointctl.tools.command_sources import CommandSource, command_source_from_co
 from jointctl.tools.recorder import TraceRecorder
 from jointctl.tools.trajectory_clients import coarse_sine
 from jointctl.trajectory.errors import InvalidTrajectory
-from jointctl.trajectory.executor import TrajectoryExecutor  # also registers the controller type
+from jointctl.trajectory.executor import TrajectoryExecutor
 from jointctl.trajectory.messages import JointTrajectory
 
 TRACE_FILE = "trace.csv"

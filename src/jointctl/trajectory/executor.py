@@ -37,7 +37,7 @@ from operator import itemgetter
 
 import numpy as np
 
-from jointctl.control.controller import Controller, register_controller
+from jointctl.control.controller import Controller
 from jointctl.control.joint_controllers import JointPositionController
 from jointctl.control.params import Params
 from jointctl.errors import ConfigError, InvalidCommand
@@ -56,7 +56,6 @@ __all__ = ["BLOCK_CYCLES", "INTERPOLATIONS", "GoalHandle", "GoalResult", "GoalSt
            "TrajectoryFeedback"]
 
 
-@register_controller("trajectory_controllers/JointTrajectoryExecutor")
 class TrajectoryExecutor(Controller):
     """Interpolates goals into references for one position controller per joint."""
 
