@@ -33,8 +33,7 @@ from typing import Protocol, TextIO
 
 from jointctl.errors import JointCtlError
 from jointctl.trajectory.messages import JointSpec, JointTrajectory
-from jointctl.trajectory.timing import (PATH_MAX_ACCELERATION, PATH_MAX_JERK, PATH_TIMINGS,
-                                        PATH_VELOCITY_FRACTION, time_path)
+from jointctl.trajectory.timing import PATH_TIMINGS, time_path
 
 #: The built-in scenario the in-process clients drive, and its trajectory executor.
 SCENARIO = "arm7dof_streamer"
@@ -198,9 +197,11 @@ class RosGoalSender:
         from sensor_msgs.msg import JointState
 
         from jointctl.control.manager import read_yaml
+        from jointctl.control.params import Params
         from jointctl.model.loader import load_robot_model
         from jointctl.ros.clients import init_client_node
         from jointctl.scenario.spec import builtin_robots, read_robot_manifest
+        from jointctl.trajectory.executor import TrajectoryExecutor
         from jointctl.trajectory.validation import joint_specs_from_model
 
         robots = builtin_robots()
@@ -217,22 +218,15 @@ class RosGoalSender:
         if not params.get("joints"):
             raise JointCtlError("no joints for the trajectory controller", field=f"{namespace}/{controller}",
                                 value=params)
-        self.joint_names = tuple(params["joints"])
+        # The executor's own reading of its parameters: the same defaults and checks as in the loop.
+        config = TrajectoryExecutor(controller, Params(params, source=f"/{namespace}/{controller}", field=""))
+        self.joint_names = config.joint_names
         self.model = load_robot_model(files.description)
         self.joint_specs = joint_specs_from_model(self.model, self.joint_names)
-        n = len(self.joint_names)
-
-        def per_joint(key: str, default: float) -> list[float]:
-            value = params.get(key, default)
-            if isinstance(value, dict):  # joint -> value, as the executor reads it
-                return [float(value.get(j, default)) for j in self.joint_names]
-            return [float(v) for v in value] if isinstance(value, (list, tuple)) else [float(value)] * n
-
-        # The executor's timing parameters, with its defaults (jointctl.trajectory.timing's).
-        self.path_velocity_fraction = float(params.get("path_velocity_fraction", PATH_VELOCITY_FRACTION))
-        self.max_acceleration = per_joint("max_acceleration", PATH_MAX_ACCELERATION)
-        self.max_jerk = per_joint("max_jerk", PATH_MAX_JERK)
-        self.goal_time_s = float(params.get("goal_time_s", 0.5))
+        self.path_velocity_fraction = config.path_velocity_fraction
+        self.max_acceleration = config.max_acceleration
+        self.max_jerk = config.max_jerk
+        self.goal_time_s = config.goal_time_s
         self._latest: dict[str, float] = {}
         self._have_state = threading.Event()
         self._lock = threading.Lock()

@@ -5,10 +5,12 @@ time since its start. :meth:`Plan.splice` continues from the desired state in ha
 and velocity, so there is no jump) into a goal's future points, bringing the joints the goal
 does not name to rest; :meth:`Plan.stop` decelerates every joint to rest together.
 
-The loop reads references with :meth:`Plan.at` once a cycle. They are sampled a block of
-``BLOCK_CYCLES`` cycles at a time (one vectorised evaluation) into a buffer of doubles, one row
-a cycle, and a cycle unpacks its row (one C call for every joint's three values), so a cycle
-costs neither an evaluation nor thousands of Python floats made at once and kept for a block.
+The loop reads references with :meth:`Plan.at` once a cycle. They are sampled on grids of
+``BLOCK_CYCLES`` cycles, each starting at the loop time of the cycle that first needs it (the
+values depend on the grid, to the last bit), several blocks in one vectorised evaluation when
+the loop's times allow, into a buffer of doubles, one row a cycle. A cycle unpacks its row
+(one C call for every joint's three values): it costs neither an evaluation nor thousands of
+Python floats made at once and kept for a block.
 """
 
 from __future__ import annotations
