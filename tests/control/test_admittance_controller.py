@@ -107,7 +107,7 @@ def test_the_chapter_file_loads_with_its_parameters(make_manager) -> None:
     assert (nac.joint_state_rate_hz, nac.force_rate_hz) == (None, None)
     assert nac.joints == ()
     assert nac.downstream == (VEL,)
-    assert nac.claimed_interfaces() == ((VEL, "command"),)
+    assert nac.claimed_interfaces() == ((VEL, "reference"),)
     assert nac.field == NAC_FIELD
 
 
@@ -503,7 +503,7 @@ def test_two_admittance_controllers_cannot_command_one_velocity_controller(robot
     manager = ControllerManager(sensor_hw, robot)
     manager.load_file(write_yaml(tree))
     manager.start([VEL, NAC])
-    with pytest.raises(ControllerError, match=f"'{VEL}' command interface is already claimed by "
+    with pytest.raises(ControllerError, match=f"controller '{VEL}' reference interface is already claimed by "
                                               f"controller '{NAC}'") as info:
         manager.start(["second_admittance_controller"])
     assert info.value.value == "second_admittance_controller"
@@ -520,7 +520,7 @@ class _Relay(Controller):
         self.started = 0
 
     def claimed_interfaces(self):
-        return ((self.downstream[0], "command"),)
+        return ((self.downstream[0], "reference"),)
 
     def configure(self, hardware, robot) -> None:
         pass

@@ -170,7 +170,7 @@ def test_the_arm_file_loads_with_the_chapters_values(make_manager, arm) -> None:
     assert nac.joint_names == JOINTS
     assert nac.joints == ()
     assert nac.downstream == VELS
-    assert nac.claimed_interfaces() == tuple((v, "command") for v in VELS)
+    assert nac.claimed_interfaces() == tuple((v, "reference") for v in VELS)
     assert nac.attractor.tolist() == [0.0, 0.0, 1.5]
     assert nac.stiffness.tolist() == [100.0, 100.0, 10.0]
     assert nac.damping.tolist() == [10.0, 10.0, 10.0]

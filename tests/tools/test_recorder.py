@@ -13,7 +13,7 @@ from tests.conftest import step_scenario
 
 def test_columns_group_by_quantity_then_sensor_axes():
     assert trace_columns(["a", "b"], ["ft"]) == [
-        "time_s", "a.command", "b.command", "a.position", "b.position", "a.velocity",
+        "time_s", "a.reference", "b.reference", "a.position", "b.position", "a.velocity",
         "b.velocity", "a.effort", "b.effort", "ft.force_x", "ft.force_y", "ft.force_z",
         "ft.torque_x", "ft.torque_y", "ft.torque_z",
     ]
@@ -31,7 +31,7 @@ def test_trace_matches_the_hardware_state_of_each_cycle(write_scenario, tmp_path
     np.testing.assert_allclose(trace.time_s, [s[0] for s in seen], rtol=0, atol=1e-12)
     np.testing.assert_allclose(trace.joint("joint1", "position"), [s[1] for s in seen], rtol=1e-9)
     np.testing.assert_allclose(trace.joint("joint1", "effort"), [s[2] for s in seen], rtol=1e-9, atol=1e-9)
-    command = trace.joint("joint1", "command")
+    command = trace.joint("joint1", "reference")
     assert command[0] == -0.2 and command[-1] == -0.5  # the step at 0.1 s
 
 
@@ -68,4 +68,4 @@ def test_joint_without_a_controller_records_nan_command(write_scenario, tmp_path
     with TraceRecorder(tmp_path / "t.csv", session.hardware, [float("nan")]) as recorder:
         session.loop.add_observer(recorder)
         session.loop.run(cycles=3)
-    assert np.isnan(load_trace(tmp_path / "t.csv").joint("joint1", "command")).all()
+    assert np.isnan(load_trace(tmp_path / "t.csv").joint("joint1", "reference")).all()

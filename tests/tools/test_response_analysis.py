@@ -118,7 +118,7 @@ def test_step_fit_recovers_analytic_second_order(wn, zeta, c0, c1):
     assert result.rise_time_s == pytest.approx(rise, abs=1e-3)
     wd = wn * math.sqrt(1 - zeta**2)
     assert result.peak_time_s == pytest.approx(math.pi / wd, abs=1e-3)
-    assert result.steady_state_error_m == pytest.approx(-offset, abs=1e-8)
+    assert result.steady_state_error == pytest.approx(-offset, abs=1e-8)
     assert result.initial_value == pytest.approx(c0 + offset)
     assert result.final_value == pytest.approx(c1 + offset, abs=1e-8)
     assert result.fit_rms_error < 1e-9
@@ -146,7 +146,7 @@ def test_step_fit_with_noise():
     settle, _ = analytic_settling_and_rise(wn, zeta)
     # Noise moves the band crossing by about noise / slope (~1 ms at 1e-4 m).
     assert result.settling_time_s == pytest.approx(settle, abs=5e-3)
-    assert result.steady_state_error_m == pytest.approx(-0.01, abs=1e-4)
+    assert result.steady_state_error == pytest.approx(-0.01, abs=1e-4)
     assert result.fit_rms_error == pytest.approx(noise, rel=0.1)
 
 
@@ -208,7 +208,7 @@ def test_step_result_is_frozen_and_json_ready():
         "damping_ratio",
         "overshoot_pct",
         "settling_time_s",
-        "steady_state_error_m",
+        "steady_state_error",
         "rise_time_s",
         "peak_time_s",
         "initial_value",

@@ -37,13 +37,13 @@ def filled(cycles: int, capacity: int = 100) -> LiveBuffer:
 
 def test_columns_are_time_then_each_quantity_per_joint_then_sensor_forces():
     buffer = filled(0)
-    assert buffer.columns == ("time", "a.command", "b.command", "a.position", "b.position", "a.velocity",
+    assert buffer.columns == ("time", "a.reference", "b.reference", "a.position", "b.position", "a.velocity",
                               "b.velocity", "a.effort", "b.effort", "ft.force_z")
 
 
 def test_rows_are_read_by_number_and_thinned_by_their_number():
     buffer = filled(50, capacity=1000)
-    rows, first, stop = buffer.rows(10, 20, [buffer.column("time"), buffer.column("a.command")])
+    rows, first, stop = buffer.rows(10, 20, [buffer.column("time"), buffer.column("a.reference")])
     assert (first, stop) == (10, 20)
     assert rows[:, 0] == pytest.approx(np.arange(10, 20) * 0.001)
     assert rows[:, 1] == pytest.approx(-np.arange(10, 20))

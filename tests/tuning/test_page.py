@@ -171,7 +171,7 @@ def test_hostile_and_malformed_input_is_refused_on_the_page_and_nothing_changes(
 
     after = server.hello()
     assert after["gains"] == before["gains"]
-    assert after["controllers"][0]["command"] == pytest.approx(-0.4)
+    assert after["controllers"][0]["reference"] == pytest.approx(-0.4)
     status = page_state(browser, "status")
     assert status["sources"][CONTROLLER] == {"type": "constant", "value": -0.4}
     save_artifact(browser, "tuning_page_refused_input.png")

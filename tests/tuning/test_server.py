@@ -50,7 +50,7 @@ def test_the_websocket_sends_hello_then_every_thinned_row_once(tune):
             message = json.loads(ws.recv())
             kinds.add(message["type"])
             if message["type"] == "data":
-                assert set(message["series"]) == {"command", "position", "velocity", "effort", "force:ft_sensor"}
+                assert set(message["series"]) == {"reference", "position", "velocity", "effort", "force:ft_sensor"}
                 times += message["t"]
     assert {"data", "status", "measure"} <= kinds
     steps = [round((b - a) * 1000) for a, b in zip(times, times[1:])]

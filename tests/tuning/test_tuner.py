@@ -233,7 +233,7 @@ def test_saved_gains_are_the_chapter_format_and_load_back_as_running(tuner, tmp_
 def test_the_live_buffer_records_every_cycle_for_the_page(tuner):
     ask(tuner, type="source", controller=POSITION, source={"type": "constant", "value": -0.4})
     run(tuner, 0.25)
-    rows, first, stop = tuner.buffer.rows(0, None, [0, tuner.buffer.column("joint1.command")])
+    rows, first, stop = tuner.buffer.rows(0, None, [0, tuner.buffer.column("joint1.reference")])
     assert (first, stop) == (0, 250)
     assert np.diff(rows[:, 0]) == pytest.approx(0.001)
     assert rows[-1, 1] == pytest.approx(-0.4)

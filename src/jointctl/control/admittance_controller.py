@@ -60,7 +60,7 @@ class AdmittanceController(Controller):
         self.velocity_reference = 0.0
 
     def claimed_interfaces(self) -> tuple[tuple[str, str], ...]:
-        return ((self.velocity_controller, "command"),)
+        return ((self.velocity_controller, "reference"),)
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         self.index = hardware.joint_index(self.joint, source=self.source, field=f"{self.field}.joint")

@@ -225,7 +225,7 @@ class CartesianAdmittanceController(Controller):
         self.tare_force = np.zeros(3)
 
     def claimed_interfaces(self) -> tuple[tuple[str, str], ...]:
-        return tuple((name, "command") for name in self.velocity_controllers)
+        return tuple((name, "reference") for name in self.velocity_controllers)
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         self.indices = [hardware.joint_index(j, source=self.source, field=f"{self.field}.joints[{k}]")

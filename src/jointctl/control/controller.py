@@ -5,9 +5,14 @@ hardware (it resolves its joint names to indices and keeps references to the
 command lists it writes) and then updated every cycle with
 ``update(time_s, period_s)``. It declares the command interfaces it claims as
 ``(joint, interface)`` pairs; the manager never lets two running controllers
-claim the same one. A controller may write another controller's command
-(chaining, as ros2_control does): it names it in ``downstream``, claims
-``(that controller, "command")`` and runs before it in every cycle.
+claim the same one. A controller may write another controller's reference
+(chaining, as ros2_control's reference interfaces): it names it in ``downstream``, claims
+``(that controller, "reference")`` and runs before it in every cycle.
+
+Words, used one way everywhere: a controller's *reference* is its input (the position or
+velocity it tracks: from a command topic, a command source or an upstream controller; the trace's
+``<joint>.reference`` column); its *command* is its output to the hardware (the effort written to
+a command handle).
 """
 
 from __future__ import annotations

@@ -215,10 +215,11 @@ class ControllerManager:
             if c in self._active:
                 continue
             for claim in c.claimed_interfaces():
-                joint, interface = claim
+                target, interface = claim
                 if claim in owner:
+                    what = "controller" if target in c.downstream else "joint"
                     raise ControllerError(
-                        f"joint {joint!r} {interface} interface is already claimed by controller "
+                        f"{what} {target!r} {interface} interface is already claimed by controller "
                         f"{owner[claim]!r}", field="controller", value=c.name)
                 owner[claim] = c.name
         running = {c.name for c in self._active} | {c.name for c in controllers}

@@ -89,7 +89,7 @@ def plot_command_and_position(
     *,
     title: str,
     ylabel: str = "position [m]",
-    command_label: str = "command",
+    command_label: str = "reference",
     position_label: str = "position",
     zoom: tuple[float, float] | None = None,
 ) -> Path:

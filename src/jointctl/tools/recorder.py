@@ -1,9 +1,9 @@
-"""Record a run to ``trace.csv``: time, then command, position, velocity and effort per joint.
+"""Record a run to ``trace.csv``: time, then reference, position, velocity and effort per joint.
 
 The recorder is a loop observer. Rows collect in memory and go to disk every
 ``chunk_rows`` rows, so memory stays flat however long the run; ``every``
 keeps one cycle in ``every`` (decimation). Columns are ``time_s`` then, per
-quantity, one column per joint: ``<joint>.command`` (the reference of the
+quantity, one column per joint: ``<joint>.reference`` (the reference of the
 controller commanding the joint: a position or a velocity; NaN when none), ``<joint>.position``,
 ``<joint>.velocity``, ``<joint>.effort``; then ``<sensor>.force_x`` ...
 ``<sensor>.torque_z`` for each force-torque sensor. SI units throughout.
@@ -21,7 +21,7 @@ import numpy as np
 
 from jointctl.hardware.interface import HardwareInterface
 
-QUANTITIES = ("command", "position", "velocity", "effort")
+QUANTITIES = ("reference", "position", "velocity", "effort")
 WRENCH_AXES = ("force_x", "force_y", "force_z", "torque_x", "torque_y", "torque_z")
 
 

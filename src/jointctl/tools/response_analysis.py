@@ -80,7 +80,7 @@ class StepResponse(_Result):
         settling_time_s: time after the step from which |y - final_value| stays
             within ``settle_band * |step size|`` [s]; ``None`` if the record ends
             outside the band.
-        steady_state_error_m: ``command_final - final_value`` [m, or rad for a
+        steady_state_error: ``command_final - final_value`` [m, or rad for a
             revolute joint].
         rise_time_s: 10 % to 90 % rise time of the measured step [s].
         peak_time_s: time from the step to the overshoot peak [s] (to the sample
@@ -96,7 +96,7 @@ class StepResponse(_Result):
     damping_ratio: float
     overshoot_pct: float
     settling_time_s: float | None
-    steady_state_error_m: float
+    steady_state_error: float
     rise_time_s: float
     peak_time_s: float
     initial_value: float
@@ -430,7 +430,7 @@ def step_response(
         damping_ratio=sigma / wn,
         overshoot_pct=overshoot_pct,
         settling_time_s=settling_time_s,
-        steady_state_error_m=c_final - y_final,
+        steady_state_error=c_final - y_final,
         rise_time_s=t90 - t10,
         peak_time_s=peak_time_s,
         initial_value=y_initial,

@@ -138,7 +138,7 @@ class TrajectoryExecutor(Controller):
 
     # -- controller contract -----------------------------------------------------------------
     def claimed_interfaces(self) -> tuple[tuple[str, str], ...]:
-        return tuple((c, "command") for c in self.downstream)
+        return tuple((c, "reference") for c in self.downstream)
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         self.hardware = hardware

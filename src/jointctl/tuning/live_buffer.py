@@ -14,7 +14,7 @@ import numpy as np
 
 from jointctl.hardware.interface import HardwareInterface
 
-QUANTITIES = ("command", "position", "velocity", "effort")
+QUANTITIES = ("reference", "position", "velocity", "effort")
 _GUARD_ROWS = 64  # rows next to the writer that readers leave alone
 
 

@@ -47,7 +47,7 @@ def measure(buffer: LiveBuffer, run: SourceRun | None, now_s: float, period_s: f
 
 
 def _signals(buffer: LiveBuffer, run: SourceRun, start_s: float, stop_s: float, period_s: float):
-    columns = [buffer.column("time"), buffer.column(f"{run.joint}.command"),
+    columns = [buffer.column("time"), buffer.column(f"{run.joint}.reference"),
                buffer.column(f"{run.joint}.{run.controlled}")]
     start = max(0, math.floor(start_s / period_s))
     rows, first, _ = buffer.rows(start, math.floor(stop_s / period_s) + 1, columns)
@@ -82,7 +82,7 @@ def _step(buffer: LiveBuffer, run: SourceRun, now_s: float, period_s: float) -> 
         "natural_frequency_rad_s": wn,
         "damping_ratio": zeta,
         "rise_time_s": fit.rise_time_s,
-        "steady_state_error": fit.steady_state_error_m,
+        "steady_state_error": fit.steady_state_error,
     }
     # Done when the fit had all it wanted (its window ends before the record does) and the
     # response has settled, or when the longest window is reached.

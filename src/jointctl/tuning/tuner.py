@@ -114,7 +114,7 @@ class Tuner:
             "joint": self.default_joint,
             "sensors": list(self.hardware.sensor_names),
             "controllers": [{"name": c.name, "joint": c.joint, "quantity": c.controlled,
-                             "command": self._command_now(c)} for c in self.commandable.values()],
+                             "reference": self._command_now(c)} for c in self.commandable.values()],
             "gains": [g.describe() for g in self.groups.values()],
             "can_drop": self.drop_object is not None,
             "gravity_z_m_s2": self._gravity_z(),
@@ -292,6 +292,6 @@ class Tuner:
 
 def stream_columns(buffer: LiveBuffer, joint: str) -> list[tuple[str, int]]:
     """The series the page plots for ``joint``: (name, buffer column) pairs."""
-    columns = [(q, buffer.column(f"{joint}.{q}")) for q in ("command", "position", "velocity", "effort")]
+    columns = [(q, buffer.column(f"{joint}.{q}")) for q in ("reference", "position", "velocity", "effort")]
     columns += [(f"force:{s}", buffer.column(f"{s}.force_z")) for s in buffer.sensor_names]
     return columns

@@ -45,7 +45,7 @@ def analyse_arm_pose(session: Session, trace: Trace, out: Path, params: dict[str
     name = session.scenario.name
     for label, run in (("jointctl", trace), *variants.items()):
         figures.plot_series(out / f"tracking_error_{label}.png", t,
-                            {j: run.joint(j, "command") - run.joint(j, "position") for j in joints},
+                            {j: run.joint(j, "reference") - run.joint(j, "position") for j in joints},
                             title=f"{name}: tracking error, {label.replace('_', ' ')}",
                             ylabel="reference - position [rad]")
     droop_params = params.get("uncompensated")

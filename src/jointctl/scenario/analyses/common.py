@@ -118,5 +118,5 @@ def rms_tracking_error(trace: Trace, joints: tuple[str, ...], start_s: float, en
     """RMS over ``joints`` and time of (reference - position) within [start_s, end_s]."""
     t = trace.time_s
     window = (t >= start_s) & (t <= end_s)
-    errors = np.array([trace.joint(j, "command")[window] - trace.joint(j, "position")[window] for j in joints])
+    errors = np.array([trace.joint(j, "reference")[window] - trace.joint(j, "position")[window] for j in joints])
     return float(np.sqrt(np.mean(errors**2)))

@@ -49,7 +49,7 @@ def analyse_drop_weight(session: Session, trace: Trace, out: Path, params: dict[
         "expected": {
             "steady_effort_n": expected_effort,
             "steady_sensor_force_z_n": -(weight.mass_kg + plate) * g,
-            "steady_position_m": float(trace.joint(joint, "command")[-1]) - expected_effort / plant.kp,
+            "steady_position_m": float(trace.joint(joint, "reference")[-1]) - expected_effort / plant.kp,
         },
         "plant": plant.__dict__,
     }
@@ -57,6 +57,6 @@ def analyse_drop_weight(session: Session, trace: Trace, out: Path, params: dict[
     figures.plot_series(out / "effort_and_force.png", t,
                         {f"{joint} effort [N]": effort, f"{sensor} force z [N]": force_z},
                         title=f"{name}: actuator effort and sensed force", ylabel="force [N]")
-    figures.plot_command_and_position(out / "position.png", t, trace.joint(joint, "command"), position,
+    figures.plot_command_and_position(out / "position.png", t, trace.joint(joint, "reference"), position,
                                       title=f"{name}: {joint} position")
     return metrics

@@ -315,7 +315,7 @@ def analyse_minimal_robot_trajectory(session: Session, trace: Trace, out: Path,
     points_q = goal.validated.positions[:, column]
 
     t = trace.time_s
-    command, position = trace.joint(joint, "command"), trace.joint(joint, "position")
+    command, position = trace.joint(joint, "reference"), trace.joint(joint, "position")
     velocity, effort = trace.joint(joint, "velocity"), trace.joint(joint, "effort")
     error = command - position
 
@@ -402,7 +402,7 @@ def _figures(name: str, out: Path, joint: str, t, command, position, model, effo
     plot(out / "interpolated_command.png", t[during], {"linear interpolation, 100 Hz": command[during]},
          title=f"{name}: the server's interpolated command (fig. 11.9)", ylabel="joint angle [rad]")
     plot(out / "position.png", t,
-         {"command": command, "model (theory)": model, f"{joint} angle": position,
+         {"reference": command, "model (theory)": model, f"{joint} angle": position,
           "predicted final pose": np.full_like(t, final_pose)},
          title=f"{name}: commanded and actual angle", ylabel="joint angle [rad]")
     plot(out / "tracking_error.png", t, {"command - angle": command - position},

@@ -33,7 +33,7 @@ def _sine_fit(session: Session, trace: Trace, params: dict[str, Any], quantity: 
     joint = analysed_joint(session, params)
     freq = _sine_frequency_hz(session, joint, command_config(session, joint), params)
     t = trace.time_s
-    command, signal = trace.joint(joint, "command"), trace.joint(joint, quantity)
+    command, signal = trace.joint(joint, "reference"), trace.joint(joint, quantity)
     result = sinusoid_response(t, command, signal, frequency_hz=freq,
                                start_s=float(params.get("start_s", default_start_s)))
     return joint, freq, t, command, signal, result, joint_plant(session, joint)

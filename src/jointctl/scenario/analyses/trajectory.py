@@ -35,17 +35,17 @@ def analyse_trajectory_tracking(session: Session, trace: Trace, out: Path,
                         title=f"{name}: the client's coarse points (fig. 11.8)", ylabel="position [m]",
                         markers=True)
     figures.plot_series(out / "interpolated_command.png", t,
-                        {"chapter mode: linear, 100 Hz": chapter.joint(joint, "command"),
-                         "jointctl: cubic, 1 kHz": trace.joint(joint, "command")},
+                        {"chapter mode: linear, 100 Hz": chapter.joint(joint, "reference"),
+                         "jointctl: cubic, 1 kHz": trace.joint(joint, "reference")},
                         title=f"{name}: interpolated command (fig. 11.9)", ylabel="position [m]")
     figures.plot_series(out / "position.png", t,
-                        {"reference": trace.joint(joint, "command"),
+                        {"reference": trace.joint(joint, "reference"),
                          "position, chapter mode": chapter.joint(joint, "position"),
                          "position, jointctl feed-forward": trace.joint(joint, "position")},
                         title=f"{name}: {joint} position", ylabel="position [m]")
     figures.plot_series(out / "tracking_error.png", t,
-                        {"chapter mode": chapter.joint(joint, "command") - chapter.joint(joint, "position"),
-                         "jointctl feed-forward": trace.joint(joint, "command") - trace.joint(joint, "position")},
+                        {"chapter mode": chapter.joint(joint, "reference") - chapter.joint(joint, "position"),
+                         "jointctl feed-forward": trace.joint(joint, "reference") - trace.joint(joint, "position")},
                         title=f"{name}: tracking error", ylabel="reference - position [m]")
     chapter_rms = rms_tracking_error(chapter, (joint,), start, end)
     ff_rms = rms_tracking_error(trace, (joint,), start, end)

@@ -13,7 +13,7 @@
   window.jointctlPage = page;
 
   const $ = (id) => document.getElementById(id);
-  const data = { t: [], command: [], position: [], velocity: [], effort: [], force: [] };
+  const data = { t: [], reference: [], position: [], velocity: [], effort: [], force: [] };
   let ws = null;
   let windowS = 10;
   let charts = [];
@@ -166,7 +166,7 @@
     const force = Object.keys(series).find((k) => k.startsWith("force:"));
     for (let k = 0; k < t.length; k++) {
       data.t.push(t[k]);
-      data.command.push(series.command[k]);
+      data.reference.push(series.reference[k]);
       data.position.push(series.position[k]);
       data.velocity.push(series.velocity[k]);
       data.effort.push(series.effort[k]);
@@ -200,7 +200,7 @@
     const effortUnit = info && info.prismatic ? "N" : "N·m";
     const hasForce = page.hello.sensors.length > 0;
     const specs = [
-      ["plot-position", "position (" + unit + ")", [["command", "#d62728"], ["position", "#1f77b4"]]],
+      ["plot-position", "position (" + unit + ")", [["reference", "#d62728"], ["position", "#1f77b4"]]],
       ["plot-velocity", "velocity (" + unit + "/s)", [["velocity", "#2ca02c"]]],
       ["plot-effort", "effort (" + effortUnit + ")" + (hasForce ? ", sensor force z (N)" : ""),
         [["effort", "#9467bd"]].concat(hasForce ? [["force", "#8c564b"]] : [])],
