@@ -9,8 +9,8 @@
   the coarse, irregularly sampled sine (:func:`~jointctl.tools.trajectory_clients.coarse_sine`,
   mapped as ``-0.5 + 0.4·sin(t)`` like ``scenarios/one_dof_trajectory.yaml``) to the
   ``example_trajectory/TrajAction`` server and waits for the result.
-- :class:`RosGoalSender`: lives in :mod:`jointctl.clients.arm` (the prompter and playfile
-  over ``arm7dof_traj_as/trajAction``); it uses :func:`require_master` and :func:`init_client_node`.
+- :class:`~jointctl.ros.arm_client.RosGoalSender`: the prompter and playfile
+  over ``arm7dof_traj_as/trajAction``; it uses :func:`require_master` and :func:`init_client_node`.
 """
 
 from __future__ import annotations
