@@ -402,3 +402,15 @@ def test_the_registry_lists_every_type_once_and_refuses_a_plugin_taking_a_built_
     assert set(BUILTIN_TYPES) <= set(types)
     with pytest.raises(ValueError, match="built-in"):
         register_controller("effort_controllers/JointPositionController")(TrajectoryExecutor)
+
+
+def test_the_feed_forward_computes_inertia_only_while_a_running_controller_reads_it():
+    from jointctl.model import load_robot_model
+    from tests.control.conftest import ONE_DOF_XACRO, FakeHardware
+
+    manager = ControllerManager(FakeHardware(), load_robot_model(ONE_DOF_XACRO))
+    manager.load_file(ONE_DOF_XACRO.parents[1] / "config" / "one_dof_traj_params.yaml")
+    manager.start(["joint1_position_controller"])  # feedforward: gravity, damping, inertia
+    assert manager.context.feedforward.wants_inertia
+    manager.stop(["joint1_position_controller"])
+    assert not manager.context.feedforward.wants_inertia  # nothing running reads it any more

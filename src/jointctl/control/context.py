@@ -75,6 +75,11 @@ class ControlContext:
             self._feedforward.dynamics.set_gravity(self.gravity_m_s2)
 
     @property
+    def has_feedforward(self) -> bool:
+        """Whether the model feed-forward has been built."""
+        return self._feedforward is not None
+
+    @property
     def feedforward(self) -> ModelFeedforward:
         """The model feed-forward, built on first use (it compiles the robot's dynamics model)."""
         if self._feedforward is None:

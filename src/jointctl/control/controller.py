@@ -36,6 +36,8 @@ class Controller(ABC):
     #: Whether it reads the model feed-forward (``context.feedforward``) in its update: the manager
     #: then runs the feed-forward once per cycle, before its first user. Set by configure().
     uses_model: bool = False
+    #: Whether it reads the feed-forward's inertia term (M(q)·q̈_ref): computed only while one does.
+    uses_model_inertia: bool = False
 
     def __init__(self, name: str, params: Params) -> None:
         self.name = name

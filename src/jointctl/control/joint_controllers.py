@@ -138,9 +138,8 @@ class JointPositionController(_EffortJointController):
         self._damping = "damping" in self.feedforward_terms
         self._inertia = "inertia" in self.feedforward_terms
         self.uses_model = self._gravity or self._inertia
+        self.uses_model_inertia = self._inertia
         self._model = self.context.feedforward if self.uses_model else None
-        if self._inertia:
-            self._model.wants_inertia = True
         self._accelerations = self.context.acceleration_references
 
     def set_command(self, position: float, velocity: float = 0.0, acceleration: float = 0.0) -> None:

@@ -350,6 +350,9 @@ class ControllerManager:
         users = [k for k, c in enumerate(self._active) if c.uses_model]
         if users:  # the model feed-forward runs once, just before its first user
             calls.insert(users[0], self.context.feedforward.update)
+        if self.context.has_feedforward:
+            # M(q) is worth its cost only while a running controller reads the inertia term.
+            self.context.feedforward.wants_inertia = any(c.uses_model_inertia for c in self._active)
         self.update_calls = tuple(calls)
 
     @property
