@@ -97,7 +97,7 @@ class ControllerFailed(JointCtlError):
 
 class PhysicsError(JointCtlError):
     """The physics engine warned that the simulation is no longer valid (``field`` names the
-    warning, e.g. ``mjWARN_BADQACC``)."""
+    warning, e.g. ``mjWARN_BADQVEL``)."""
 
     code = "physics"
 

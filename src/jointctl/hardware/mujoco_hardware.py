@@ -21,8 +21,8 @@ from jointctl.sim.world import MujocoWorld
 
 #: MuJoCo's warnings, by index into ``MjData.warning``.
 WARNINGS = {int(getattr(mjtWarning, n)): n for n in dir(mjtWarning) if n.startswith("mjWARN_")}
-#: Cycles between full reads of the warning counters (a reset by an unstable simulation is seen
-#: at once, by the time going back; a full contact buffer within this many cycles).
+#: Cycles between reads of the warning counters: a warning ends the run within this many cycles
+#: (reading them every cycle would cost about as much as the rest of a 1-DOF cycle's Python).
 WARNING_CHECK_CYCLES = 100
 
 
@@ -156,29 +156,28 @@ class MujocoHardware(HardwareInterface):
             w[3], w[4], w[5] = -data[t], -data[t + 1], -data[t + 2]
 
     def advance(self, period_s: float) -> None:
-        """Step the physics by ``period_s``; :class:`PhysicsError` naming MuJoCo's warning when the
-        simulation became invalid (MuJoCo resets an unstable simulation: its time goes back)."""
+        """Step the physics by ``period_s``; :class:`PhysicsError` naming MuJoCo's warning, within
+        ``WARNING_CHECK_CYCLES`` cycles, when the simulation became invalid."""
         if period_s != self._period_s:
             self._nstep = physics_steps(period_s, self.world.timestep_s)
             self._period_s = period_s
-        d = self._data
-        before_s = d.time
-        mj_step(self._model, d, self._nstep)
+        mj_step(self._model, self._data, self._nstep)
         self._until_warning_check -= 1
-        if d.time <= before_s or not self._until_warning_check:
-            self._check_warnings(before_s)
+        if not self._until_warning_check:
+            self._check_warnings()
 
-    def _check_warnings(self, time_s: float) -> None:
+    def _check_warnings(self) -> None:
+        # MuJoCo counts each warning; resetting an unstable simulation zeroes the counts and then
+        # counts the warning that caused it, so a count above the last one seen is always new.
         self._until_warning_check = WARNING_CHECK_CYCLES
         counts = [w.number for w in self._data.warning]
         new = [k for k, (now, seen) in enumerate(zip(counts, self._warnings_seen)) if now > seen]
-        reset = self._data.time <= time_s
         self._warnings_seen = counts
-        if new or reset:
-            names = ", ".join(WARNINGS.get(k, str(k)) for k in new) or "a reset of the simulation"
-            raise PhysicsError(f"MuJoCo warned at t = {time_s:.3f} s: the simulation is no longer valid "
+        if new:
+            raise PhysicsError(f"MuJoCo warned by t = {self._data.time:.3f} s: the simulation is no longer valid "
                                "(unstable gains or contacts, a non-finite force, or too many contacts)",
-                               field=names, value=[self._data.warning[k].lastinfo for k in new])
+                               field=", ".join(WARNINGS.get(k, str(k)) for k in new),
+                               value=[self._data.warning[k].lastinfo for k in new])
 
     def reset(self) -> None:
         self.world.reset()
