@@ -111,7 +111,7 @@ class MujocoHardware(HardwareInterface):
         self._model, self._data = world.model, world.data
         self._period_s, self._nstep = world.timestep_s, 1
         self._until_warning_check = WARNING_CHECK_CYCLES
-        self._warnings_seen = [w.number for w in world.data.warning]
+        self._warnings_seen = [world.data.warning[k].number for k in range(len(world.data.warning))]
         self.write()  # carry the current commands into a freshly bound MjData
 
     def command_interfaces(self, joint: str) -> frozenset[str]:
@@ -170,7 +170,8 @@ class MujocoHardware(HardwareInterface):
         # MuJoCo counts each warning; resetting an unstable simulation zeroes the counts and then
         # counts the warning that caused it, so a count above the last one seen is always new.
         self._until_warning_check = WARNING_CHECK_CYCLES
-        counts = [w.number for w in self._data.warning]
+        warning = self._data.warning  # indexed, not iterated: pybind11 ends an iteration with a C++ exception
+        counts = [warning[k].number for k in range(len(warning))]
         new = [k for k, (now, seen) in enumerate(zip(counts, self._warnings_seen)) if now > seen]
         self._warnings_seen = counts
         if new:
@@ -181,7 +182,7 @@ class MujocoHardware(HardwareInterface):
 
     def reset(self) -> None:
         self.world.reset()
-        self._warnings_seen = [w.number for w in self._data.warning]
+        self._warnings_seen = [self._data.warning[k].number for k in range(len(self._data.warning))]
         for buf in self._commands.values():
             buf[:] = [0.0] * len(buf)
         self.read()
