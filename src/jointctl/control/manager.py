@@ -290,7 +290,7 @@ class ControllerManager:
         feed-forward, every controller that uses it)."""
         owner = getattr(call, "__self__", None)
         reason = f"{type(exc).__name__} in update: {exc}"
-        if owner is self.context.feedforward:
+        if self.context.has_feedforward and owner is self.context.feedforward:  # (never built just to ask)
             for c in [c for c in self._active if c.uses_model]:
                 self.fail(c, f"model feed-forward {reason}", time_s)
         elif isinstance(owner, Controller):

@@ -28,7 +28,7 @@ POSITION = "position"
 
 class SimulationDoor(ABC):
     """What only a simulated robot offers: gravity, objects spawned into and removed from its world,
-    their poses, a reset. Real hardware has none (``HardwareInterface.simulation`` is None), and the
+    their poses (the reset to the initial state is ``HardwareInterface.reset``). Real hardware has none (``HardwareInterface.simulation`` is None), and the
     edges that use it (the tuning page, scenario objects, the ROS world services) say so.
 
     Changes are made from the loop thread, at the start of a cycle (the edges queue them there).
