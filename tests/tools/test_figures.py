@@ -84,3 +84,5 @@ def test_bad_input(tmp_path, trace):
         plot_command_and_position(tmp_path / "x.png", t, command, position, title="s",
                                   command_label="x", position_label="x")
     assert not (tmp_path / "x.png").exists()
+    plot_series(tmp_path / "x.png", t, {"v": position}, title="v", ylabel="v [m/s]")
+    assert (tmp_path / "x.png").exists()  # where the refused calls would have written, a good one does
