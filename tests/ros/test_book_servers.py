@@ -80,7 +80,8 @@ def test_a_goal_stamped_in_the_past_runs_whole_from_when_it_starts(ros_env, serv
 
 def test_a_newer_waiting_goal_replaces_the_older_waiting_one(ros_env, serve):
     process = serve("one_dof", "--controllers", "trajectory", wait_topic=ONE_DOF_STATES)
-    running = {"joint_names": ["joint1"], "points": [[0.0, [-0.5]], [3.0, [-0.3]]]}
+    # 6 s: long enough that both later goals arrive while it runs, however busy the machine.
+    running = {"joint_names": ["joint1"], "points": [[0.0, [-0.5]], [6.0, [-0.3]]]}
     replaced = {"send_at_s": 0.5, "joint_names": ["joint1"], "points": [[0.0, [-0.3]], [1.0, [-0.4]]]}
     last = {"send_at_s": 1.0, "joint_names": ["joint1"], "points": [[0.0, [-0.3]], [1.0, [-0.2]]]}
     a, b, c = send_goals(ros_env, "traj", "example_traj_action_server", [running, replaced, last])
