@@ -97,4 +97,4 @@ def test_simulated_clock_does_not_wait():
     clock.start()
     start = time.perf_counter()
     clock.wait_for(1000.0)
-    assert time.perf_counter() - start < 0.5
+    assert time.perf_counter() - start < 10.0  # a hang guard: waiting would take 1000 s

@@ -80,7 +80,7 @@ def test_integer_powers_are_float_so_huge_powers_overflow_instead_of_hanging() -
     started = time.perf_counter()
     with pytest.raises(ExpressionError, match=r"overflow") as info:
         expression.evaluate(0, 0.0)
-    assert time.perf_counter() - started < 0.5
+    assert time.perf_counter() - started < 10.0  # a hang guard (exact integer powers would run for ever), not a speed
     assert "9**9**9**9" in str(info.value)
 
 
@@ -148,12 +148,16 @@ def test_syntax_error_on_second_line_names_line_and_column() -> None:
     assert "line 2, column 3" in message
 
 
-def test_ten_megabyte_text_is_refused_fast() -> None:
+def test_ten_megabyte_text_is_refused_before_it_is_parsed(monkeypatch) -> None:
     text = "1+" * 5_000_000 + "1"
-    started = time.perf_counter()
+    from jointctl.tools import expression as module
+
+    def never(*_args, **_kwargs):
+        raise AssertionError("a text over the limit reached the parser")
+
+    monkeypatch.setattr(module.ast, "parse", never)
     with pytest.raises(ExpressionError, match=r"too long \(10000001 characters, limit 1000\)") as info:
         parse_expression(text)
-    assert time.perf_counter() - started < 0.1
     assert len(str(info.value)) < 300
 
 
