@@ -307,8 +307,8 @@ class ControllerManager:
                 if not math.isfinite(value):
                     joint = self.hardware.joint_names[index]
                     owner = self.commanding(joint)
-                    if owner is None:
-                        buf[index] = 0.0 if index not in self._safe_indices else buf[index]
+                    if owner is None:  # nobody's: zero (failed joints get their safe action below)
+                        buf[index] = 0.0
                         continue
                     top = self._chain_of(owner)[0]
                     self.fail(owner, f"non-finite command {value!r} for joint {joint!r} "

@@ -69,8 +69,7 @@ def static_droop(session: Session, joints: tuple[str, ...], pose: np.ndarray) ->
     deflection Δq that solves ``Kp·(-Δq) = g(pose + Δq)`` joint by joint, with g from the robot's
     dynamics library (the holding efforts, N·m) and Kp from the running controllers."""
     dynamics = RobotDynamics(session.robot, session.scenario.gravity_m_s2, joints=joints)
-    kp = np.array([next(c for c in session.manager.active if c.joints == (j,) and hasattr(c, "pid")).pid.gains.p
-                   for j in joints])
+    kp = np.array([session.manager.commanding(j).pid.gains.p for j in joints])
 
     def residual(q: np.ndarray) -> np.ndarray:
         dynamics.set_pose(q, inertia=False)
