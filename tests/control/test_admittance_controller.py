@@ -26,7 +26,7 @@ from jointctl.control import (
 )
 from jointctl.control.registry import controller_types
 from jointctl.control.controller import Controller
-from jointctl.errors import ConfigError, ControllerError
+from jointctl.errors import ConfigError, ControllerError, InvalidCommand
 from jointctl.hardware.interface import EFFORT
 from jointctl.model import load_robot_model
 from jointctl.paths import robots_dir
@@ -121,24 +121,24 @@ def test_one_update_computes_the_virtual_force_and_integrates_it(make_manager, s
     # f = 1000 (-0.2 + 0.25) - 50 (0.1) + (-3) = 50 - 5 - 3 = 42 N; v_ref = 42 / 2 * 0.001
     assert (nac.position, nac.velocity, nac.force) == (-0.25, 0.1, -3.0)
     assert nac.velocity_reference == pytest.approx(0.021, rel=1e-12)
-    assert vel.command == nac.velocity_reference
+    assert vel.reference_input == nac.velocity_reference
     nac.update(DT, DT)  # same state: the same f again, integrated
     assert nac.velocity_reference == pytest.approx(0.042, rel=1e-12)
-    assert vel.command == pytest.approx(0.042, rel=1e-12)
+    assert vel.reference_input == pytest.approx(0.042, rel=1e-12)
 
 
 def test_the_velocity_reference_is_clamped_both_ways(make_manager, sensor_hw) -> None:
     manager, nac, vel = started(make_manager, mass=1.0, stiffness=0.0, damping=0.0, max_velocity=0.05)
     sensor_hw.set_wrench("ft_sensor", [0, 0, 30.0, 0, 0, 0])  # +0.03 m/s per cycle
     nac.update(0.0, DT)
-    assert vel.command == pytest.approx(0.03, rel=1e-12)
+    assert vel.reference_input == pytest.approx(0.03, rel=1e-12)
     nac.update(DT, DT)
-    assert vel.command == 0.05  # 0.06 clamped to +max_velocity
+    assert vel.reference_input == 0.05  # 0.06 clamped to +max_velocity
     sensor_hw.set_wrench("ft_sensor", [0, 0, -80.0, 0, 0, 0])  # -0.08 m/s per cycle
     nac.update(2 * DT, DT)
-    assert vel.command == pytest.approx(-0.03, rel=1e-12)  # from the clamped value, not from 0.06
+    assert vel.reference_input == pytest.approx(-0.03, rel=1e-12)  # from the clamped value, not from 0.06
     nac.update(3 * DT, DT)
-    assert vel.command == -0.05
+    assert vel.reference_input == -0.05
     assert nac.velocity_reference == -0.05
 
 
@@ -146,7 +146,7 @@ def test_the_velocity_reference_integrates_over_the_given_period(make_manager, s
     manager, nac, vel = started(make_manager, mass=4.0, stiffness=0.0, damping=0.0)
     sensor_hw.set_wrench("ft_sensor", [0, 0, 2.0, 0, 0, 0])
     nac.update(0.0, 0.002)
-    assert vel.command == pytest.approx(2.0 / 4.0 * 0.002, rel=1e-12)
+    assert vel.reference_input == pytest.approx(2.0 / 4.0 * 0.002, rel=1e-12)
 
 
 def test_the_chain_reaches_the_effort_command(make_manager, sensor_hw) -> None:
@@ -154,7 +154,7 @@ def test_the_chain_reaches_the_effort_command(make_manager, sensor_hw) -> None:
     sensor_hw.set_state("joint1", -0.21, -0.02)
     manager.update(0.0, DT)
     v_ref = (1000.0 * 0.01 - 50.0 * -0.02 + 0.0) / 1.0 * DT
-    assert vel.command == pytest.approx(v_ref, rel=1e-12)
+    assert vel.reference_input == pytest.approx(v_ref, rel=1e-12)
     # the velocity controller ran after it in the same cycle, with the new reference
     assert manager.references[0] == pytest.approx(v_ref, rel=1e-12)
     assert sensor_hw.command_buffer(EFFORT)[0] == pytest.approx(KV * (v_ref - -0.02), rel=1e-12)
@@ -180,7 +180,7 @@ def test_force_axis_picks_the_component(make_manager, sensor_hw, axis, expected)
     sensor_hw.set_wrench("ft_sensor", [1.5, -2.5, 4.0, 100.0, 200.0, 300.0])
     nac.update(0.0, DT)
     assert nac.force == expected
-    assert vel.command == pytest.approx(expected / 0.5 * DT, rel=1e-12)
+    assert vel.reference_input == pytest.approx(expected / 0.5 * DT, rel=1e-12)
 
 
 def test_force_axis_defaults_to_z(make_manager) -> None:
@@ -235,7 +235,7 @@ def test_held_signals_still_integrate_every_cycle(make_manager, sensor_hw) -> No
     sensor_hw.set_state("joint1", -0.5, 3.0)  # not seen until the next sample
     for k in range(1, 20):
         nac.update(k * DT, DT)
-        assert vel.command == pytest.approx(10.0 * DT * (k + 1), rel=1e-12)
+        assert vel.reference_input == pytest.approx(10.0 * DT * (k + 1), rel=1e-12)
 
 
 def test_sampling_starts_at_the_start_time(make_manager, sensor_hw) -> None:
@@ -328,7 +328,7 @@ def test_an_attractor_on_or_inside_the_range_is_accepted(make_manager, attractor
     assert make_manager(attractor=attractor).load(NAC).attractor == attractor
 
 
-def test_a_velocity_controller_without_set_command_is_refused(make_manager) -> None:
+def test_a_controller_that_is_not_a_velocity_controller_is_refused(make_manager) -> None:
     manager = make_manager(velocity_controller=JSC)
     with pytest.raises(ConfigError, match="must name a velocity controller of the same joint") as info:
         manager.start([JSC, NAC])
@@ -388,7 +388,7 @@ def test_set_gains_applies_at_the_next_update(make_manager, sensor_hw) -> None:
     nac.set_gains(stiffness=500.0)
     assert (nac.mass, nac.stiffness, nac.damping) == (1.0, 500.0, 0.0)
     nac.update(0.0, DT)
-    assert vel.command == pytest.approx(500.0 * 0.05 * DT, rel=1e-12)
+    assert vel.reference_input == pytest.approx(500.0 * 0.05 * DT, rel=1e-12)
     nac.set_gains(mass=5, damping=2)  # ints are accepted as floats
     assert (nac.mass, nac.stiffness, nac.damping) == (5.0, 500.0, 2.0)
     assert isinstance(nac.mass, float)
@@ -450,6 +450,52 @@ def test_the_update_order_is_observable_in_one_cycle(make_manager, sensor_hw) ->
     sensor_hw.set_wrench("ft_sensor", [0, 0, 10.0, 0, 0, 0])
     manager.update(0.0, DT)
     assert sensor_hw.command_buffer(EFFORT)[0] == pytest.approx(KV * 10.0 * DT, rel=1e-12)
+
+
+def test_while_chained_the_velocity_controller_refuses_edge_references(make_manager, sensor_hw) -> None:
+    # Chained mode: the admittance controller writes the reference interface; an edge (a command
+    # topic, a command source) is refused naming it, and the admittance's value is what is used.
+    manager = make_manager(stiffness=0.0, damping=0.0)
+    manager.start([VEL])
+    vel = manager.controller(VEL)
+    vel.set_reference(0.3)  # not chained yet: accepted
+    assert (vel.upstream, vel.reference_input) == (None, 0.3)
+    manager.start([NAC])
+    assert vel.upstream == NAC
+    with pytest.raises(InvalidCommand, match=f"comes from controller '{NAC}'") as info:
+        vel.set_reference(0.5)
+    assert (info.value.source, info.value.field, info.value.value) == (VEL, "reference", 0.5)
+    sensor_hw.set_wrench("ft_sensor", [0, 0, 10.0, 0, 0, 0])
+    manager.update(0.0, DT)
+    assert vel.reference_input == pytest.approx(10.0 * DT, rel=1e-12)  # the admittance's, not 0.5
+    manager.stop([NAC, VEL])
+    assert vel.upstream is None
+    manager.start([VEL])
+    vel.set_reference(0.5)  # no longer chained: the edge works again
+    assert vel.reference_input == 0.5
+
+
+def test_the_velocity_watchdog_is_off_while_chained(make_manager, sensor_hw, write_yaml, robot) -> None:
+    # The admittance controller writes every cycle of the same loop, never through the edge door:
+    # a 5 ms command timeout must not zero its reference.
+    tree = definitions(stiffness=0.0, damping=0.0)
+    tree[NAMESPACE][VEL]["command_timeout_s"] = 0.005
+    manager = ControllerManager(sensor_hw, robot)
+    manager.load_file(write_yaml(tree))
+    manager.start([VEL, NAC])
+    vel = manager.controller(VEL)
+    sensor_hw.set_wrench("ft_sensor", [0, 0, 10.0, 0, 0, 0])
+    for k in range(50):
+        manager.update(k * DT, DT)
+    assert not vel.timed_out
+    assert manager.references[0] == pytest.approx(50 * 10.0 * DT, rel=1e-9)  # integrated, in use
+    assert sensor_hw.command_buffer(EFFORT)[0] == pytest.approx(KV * 50 * 10.0 * DT, rel=1e-9)
+    manager.stop([NAC, VEL])
+    manager.start([VEL])  # alone, from an edge: the watchdog is back
+    vel.set_reference(0.1)
+    for k in range(50, 60):
+        manager.update(k * DT, DT)
+    assert vel.timed_out and manager.references[0] == 0.0
 
 
 def test_starting_it_without_its_velocity_controller_is_refused(make_manager) -> None:

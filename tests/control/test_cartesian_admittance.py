@@ -271,7 +271,7 @@ def test_one_update_by_hand_with_stub_kinematics(make_manager, hw) -> None:
     qdd = (tau - np.array([0.01, 0.0, 0.02, 0, 0, 0, 0])) / np.array([20, 20, 10, 10, 3, 3, 3])
     np.testing.assert_allclose(nac.acceleration, qdd, atol=1e-12)
     np.testing.assert_allclose(nac.velocity_command, qdd * DT, atol=1e-15)
-    assert [manager.controller(v).command for v in VELS] == nac.velocity_command
+    assert [manager.controller(v).reference_input for v in VELS] == nac.velocity_command
 
 
 def test_one_update_on_the_real_arm_matches_a_hand_computation(make_manager, hw, kin) -> None:
@@ -449,7 +449,7 @@ def test_tare_averages_while_holding_still_then_subtracts(make_manager, hw, kin)
         hw.set_wrench("ft_sensor", [*r, 0, 0, 0])
         manager.update(k * DT, DT)
         assert nac.velocity_command == [0.0] * 7
-        assert [manager.controller(v).command for v in VELS] == [0.0] * 7
+        assert [manager.controller(v).reference_input for v in VELS] == [0.0] * 7
     kin.set_pose(PRE_POSE)
     expected_tare = kin.sensor_rotation @ np.mean(readings, axis=0)
     np.testing.assert_allclose(nac.tare_force, expected_tare, atol=1e-15)

@@ -82,7 +82,7 @@ def test_position_controller_writes_into_the_hardware_effort_buffer(hardware, ch
 def test_position_effort_is_p_times_position_error(hardware, chapter_position) -> None:
     c = chapter_position
     hardware.set_state("joint1", -0.2, 0.0)
-    c.set_command(-0.5)
+    c.set_reference(-0.5)
     c.update(0.0, DT)
     assert effort(hardware) == pytest.approx(400.0 * (-0.5 - -0.2))  # -120 N
     assert c.reference == -0.5
@@ -94,20 +94,20 @@ def test_position_effort_is_p_times_position_error(hardware, chapter_position) -
 def test_position_effort_d_acts_on_velocity_error(hardware, robot) -> None:
     c = position_controller(hardware, robot, p=400.0, d=20.0)
     hardware.set_state("joint1", -0.2, 0.3)
-    c.set_command(-0.5, 0.1)
+    c.set_reference(-0.5, 0.1)
     c.update(0.0, DT)
     # 400 * (-0.5 + 0.2) + 20 * (0.1 - 0.3) = -120 - 4
     assert effort(hardware) == pytest.approx(-124.0)
-    assert c.command == (-0.5, 0.1, 0.0)
+    assert c.reference_input == (-0.5, 0.1, 0.0)
 
 
 def test_position_step_has_no_derivative_kick(hardware, robot) -> None:
     c = position_controller(hardware, robot, p=400.0, d=20.0)
     hardware.set_state("joint1", -0.2, 0.0)
-    c.set_command(-0.2)
+    c.set_reference(-0.2)
     c.update(0.0, DT)
     assert effort(hardware) == pytest.approx(0.0)
-    c.set_command(-0.6)  # a step of 0.4 m in one period
+    c.set_reference(-0.6)  # a step of 0.4 m in one period
     c.update(DT, DT)
     assert effort(hardware) == pytest.approx(-160.0)  # p only, no 0.4/dt * d spike
 
@@ -125,21 +125,21 @@ def test_position_step_has_no_derivative_kick(hardware, robot) -> None:
 def test_position_command_clamped_to_joint_limits(hardware, chapter_position, command, reference,
                                                   expected_effort) -> None:
     hardware.set_state("joint1", -0.2)
-    chapter_position.set_command(command)
+    chapter_position.set_reference(command)
     chapter_position.update(0.0, DT)
     assert chapter_position.reference == reference
-    assert chapter_position.command == (command, 0.0, 0.0)  # the command is kept as given
+    assert chapter_position.reference_input == (command, 0.0, 0.0)  # the command is kept as given
     assert effort(hardware) == pytest.approx(expected_effort)
 
 
 def test_position_output_clamped_to_the_effort_limit(hardware, robot) -> None:
     c = position_controller(hardware, robot, p=4000.0)
     hardware.set_state("joint1", -1.0)
-    c.set_command(0.0)
+    c.set_reference(0.0)
     c.update(0.0, DT)
     assert effort(hardware) == 1000.0  # 4000 N asked
     hardware.set_state("joint1", 0.0)
-    c.set_command(-1.0)
+    c.set_reference(-1.0)
     c.update(DT, DT)
     assert effort(hardware) == -1000.0
     hardware.set_state("joint1", -0.9)
@@ -149,12 +149,12 @@ def test_position_output_clamped_to_the_effort_limit(hardware, robot) -> None:
 
 def test_position_start_holds_the_current_position(hardware, chapter_position) -> None:
     c = chapter_position
-    c.set_command(-0.9)
+    c.set_reference(-0.9)
     hardware.set_state("joint1", -0.37, 0.2)
     reads = hardware.reads
     c.start(0.0)
     assert hardware.reads == reads + 1  # it reads the hardware before taking the position
-    assert c.command == (-0.37, 0.0, 0.0)
+    assert c.reference_input == (-0.37, 0.0, 0.0)
     hardware.velocity[0] = 0.0
     c.update(0.0, DT)
     assert c.reference == -0.37
@@ -165,7 +165,7 @@ def test_position_start_resets_the_integral(hardware, robot) -> None:
     c = position_controller(hardware, robot, p=0.0, i=100.0)
     hardware.set_state("joint1", -0.5)
     c.start(0.0)
-    c.set_command(-0.4)
+    c.set_reference(-0.4)
     for k in range(10):
         c.update(k * DT, DT)
     assert c.pid.i_state == pytest.approx(100.0 * 0.1 * 10 * DT)
@@ -174,26 +174,26 @@ def test_position_start_resets_the_integral(hardware, robot) -> None:
 
 
 @pytest.mark.parametrize("bad", BAD_COMMANDS, ids=repr)
-def test_position_set_command_refuses_non_finite_numbers(chapter_position, bad) -> None:
+def test_position_set_reference_refuses_non_finite_numbers(chapter_position, bad) -> None:
     c = chapter_position
-    c.set_command(-0.4, 0.05)
+    c.set_reference(-0.4, 0.05)
     with pytest.raises(InvalidCommand) as info:
-        c.set_command(bad)
-    assert info.value.field == "command.position"
+        c.set_reference(bad)
+    assert info.value.field == "reference.position"
     assert info.value.source == "joint1_position_controller"
-    assert c.command == (-0.4, 0.05, 0.0)
+    assert c.reference_input == (-0.4, 0.05, 0.0)
     with pytest.raises(InvalidCommand) as info:
-        c.set_command(-0.1, bad)
-    assert info.value.field == "command.velocity"
-    assert c.command == (-0.4, 0.05, 0.0)  # neither half of the refused command was taken
+        c.set_reference(-0.1, bad)
+    assert info.value.field == "reference.velocity"
+    assert c.reference_input == (-0.4, 0.05, 0.0)  # neither half of the refused command was taken
 
 
-def test_position_set_command_accepts_ints_and_numpy_floats(chapter_position) -> None:
+def test_position_set_reference_accepts_ints_and_numpy_floats(chapter_position) -> None:
     c = chapter_position
-    c.set_command(0)
-    assert c.command == (0.0, 0.0, 0.0) and type(c.command[0]) is float
-    c.set_command(np.float64(-0.25), np.float64(0.5))
-    assert c.command == (-0.25, 0.5, 0.0)
+    c.set_reference(0)
+    assert c.reference_input == (0.0, 0.0, 0.0) and type(c.reference_input[0]) is float
+    c.set_reference(np.float64(-0.25), np.float64(0.5))
+    assert c.reference_input == (-0.25, 0.5, 0.0)
 
 
 def test_position_controller_closes_the_loop_on_a_double_integrator(hardware, robot) -> None:
@@ -201,7 +201,7 @@ def test_position_controller_closes_the_loop_on_a_double_integrator(hardware, ro
     c = position_controller(hardware, robot, p=400.0, d=40.0)
     hardware.set_state("joint1", -0.2)
     c.start(0.0)
-    c.set_command(-0.5)
+    c.set_reference(-0.5)
     peak = 0.0
     lowest = 0.0
     for k in range(2000):
@@ -288,13 +288,13 @@ def test_a_joint_without_limits_clamps_nothing() -> None:
     hw = FakeHardware(("wheel",))
     robot = wheel_robot()
     c = build({"type": POSITION_TYPE, "joint": "wheel", "pid": {"p": 1e3}}, hw, robot)
-    c.set_command(50.0)
+    c.set_reference(50.0)
     c.update(0.0, DT)
     assert c.reference == 50.0
     # A continuous joint servos the shortest way round: 50 rad is 8 turns less 0.27 rad.
     assert effort(hw) == pytest.approx(1e3 * (50.0 - 16 * math.pi))
     v = build({"type": VELOCITY_TYPE, "joint": "wheel", "pid": {"p": 1.0}}, hw, robot)
-    v.set_command(1e4)
+    v.set_reference(1e4)
     v.update(0.0, DT)
     assert v.reference == 1e4
 
@@ -304,7 +304,7 @@ def test_i_gain_works_without_i_clamp_on_a_joint_without_limits() -> None:
     c = build({"type": VELOCITY_TYPE, "joint": "wheel", "pid": {"p": 0.0, "i": 5.0}}, hw,
               wheel_robot())
     c.start(0.0)
-    c.set_command(1.0)
+    c.set_reference(1.0)
     for k in range(10):
         c.update(k * 0.01, 0.01)
     assert effort(hw) == pytest.approx(5.0 * 1.0 * 0.01 * 10)
@@ -323,12 +323,12 @@ def test_velocity_controller_from_the_chapter_yaml(chapter_velocity) -> None:
 def test_velocity_effort_is_p_times_velocity_error(hardware, chapter_velocity) -> None:
     c = chapter_velocity
     hardware.set_state("joint1", -0.5, 0.3)
-    c.set_command(1.0)
+    c.set_reference(1.0)
     c.update(0.0, DT)
     assert effort(hardware) == pytest.approx(200.0 * (1.0 - 0.3))  # 140 N
     assert c.reference == 1.0
     hardware.set_state("joint1", -0.9, -0.2)  # the position does not matter
-    c.set_command(-0.5)
+    c.set_reference(-0.5)
     c.update(DT, DT)
     assert effort(hardware) == pytest.approx(-60.0)
 
@@ -337,28 +337,28 @@ def test_velocity_effort_is_p_times_velocity_error(hardware, chapter_velocity) -
                                                     (100.0, 100.0), (-99.5, -99.5)])
 def test_velocity_command_clamped_to_the_velocity_limit(hardware, robot, command, reference) -> None:
     c = velocity_controller(hardware, robot, p=5.0)
-    c.set_command(command)
+    c.set_reference(command)
     c.update(0.0, DT)
     assert c.reference == reference
-    assert c.command == command
+    assert c.reference_input == command
     assert effort(hardware) == pytest.approx(5.0 * reference)
 
 
 def test_velocity_output_clamped_to_the_effort_limit(hardware, chapter_velocity) -> None:
-    chapter_velocity.set_command(50.0)
+    chapter_velocity.set_reference(50.0)
     chapter_velocity.update(0.0, DT)
     assert effort(hardware) == 1000.0  # 200 * 50 = 10000 asked
-    chapter_velocity.set_command(-50.0)
+    chapter_velocity.set_reference(-50.0)
     chapter_velocity.update(DT, DT)
     assert effort(hardware) == -1000.0
 
 
 def test_velocity_start_resets_the_command_to_zero(hardware, chapter_velocity) -> None:
     c = chapter_velocity
-    c.set_command(2.0)
+    c.set_reference(2.0)
     hardware.set_state("joint1", -0.5, 0.5)
     c.start(0.0)
-    assert c.command == 0.0
+    assert c.reference_input == 0.0
     c.update(0.0, DT)
     assert c.reference == 0.0
     assert effort(hardware) == pytest.approx(-100.0)  # 200 * (0 - 0.5)
@@ -367,7 +367,7 @@ def test_velocity_start_resets_the_command_to_zero(hardware, chapter_velocity) -
 def test_velocity_d_acts_on_the_backward_difference_of_the_error(hardware, robot) -> None:
     c = velocity_controller(hardware, robot, p=0.0, d=2.0)
     c.start(0.0)
-    c.set_command(1.0)
+    c.set_reference(1.0)
     hardware.set_state("joint1", 0.0, 0.0)
     c.update(0.0, 0.01)  # error 1
     hardware.set_state("joint1", 0.0, 0.5)
@@ -378,20 +378,20 @@ def test_velocity_d_acts_on_the_backward_difference_of_the_error(hardware, robot
 
 
 @pytest.mark.parametrize("bad", BAD_COMMANDS, ids=repr)
-def test_velocity_set_command_refuses_non_finite_numbers(chapter_velocity, bad) -> None:
+def test_velocity_set_reference_refuses_non_finite_numbers(chapter_velocity, bad) -> None:
     c = chapter_velocity
-    c.set_command(0.75)
+    c.set_reference(0.75)
     with pytest.raises(InvalidCommand) as info:
-        c.set_command(bad)
-    assert info.value.field == "command"
+        c.set_reference(bad)
+    assert info.value.field == "reference"
     assert info.value.source == "joint1_velocity_controller"
-    assert c.command == 0.75
+    assert c.reference_input == 0.75
 
 
 def test_velocity_controller_tracks_on_a_double_integrator(hardware, chapter_velocity) -> None:
     c = chapter_velocity
     c.start(0.0)
-    c.set_command(-0.8)
+    c.set_reference(-0.8)
     for k in range(200):
         c.update(k * DT, DT)
         hardware.write()

@@ -281,7 +281,7 @@ def test_stop_then_start_the_other_works(both, hardware) -> None:
     vel = both.commanding("joint1")
     assert vel is both.controller(VEL)
     hardware.set_state("joint1", -0.5, 0.25)
-    vel.set_command(1.0)
+    vel.set_reference(1.0)
     both.update(0.0, 0.001)
     assert hardware.command_buffer("effort")[0] == pytest.approx(200.0 * 0.75)
 
@@ -301,9 +301,9 @@ def test_stop_calls_stop_and_drops_the_update(both) -> None:
 def test_starting_a_running_controller_again_does_not_restart_it(both, hardware) -> None:
     both.start([POS])
     pos = both.controller(POS)
-    pos.set_command(-0.8)
+    pos.set_reference(-0.8)
     both.start([POS])
-    assert pos.command == (-0.8, 0.0, 0.0)  # not reset to "hold where it is"
+    assert pos.reference_input == (-0.8, 0.0, 0.0)  # not reset to "hold where it is"
     assert [c.name for c in both.active] == [POS]
 
 
@@ -373,10 +373,10 @@ def test_position_control_of_the_mujoco_piston(robot) -> None:
     manager.load_file(POSITION_YAML)
     manager.start([JSC, POS])
     pos = manager.commanding("joint1")
-    assert pos.command == (pytest.approx(-0.2), 0.0, 0.0)  # holds where it starts
+    assert pos.reference_input == (pytest.approx(-0.2), 0.0, 0.0)  # holds where it starts
     samples = []
     manager.controller(JSC).subscribe(samples.append)
-    pos.set_command(-0.5)
+    pos.set_reference(-0.5)
     period = 0.001
     for k in range(3000):
         hw.read()

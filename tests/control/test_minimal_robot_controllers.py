@@ -111,7 +111,7 @@ def test_a_continuous_joint_servos_the_wrapped_error(command, position, error):
     hw = FakeHardware(("wheel",))
     c = controller_on("continuous", hw)
     hw.set_state("wheel", position, 0.4)
-    c.set_command(command)
+    c.set_reference(command)
     c.update(0.0, DT)
     assert hw.command_buffer(EFFORT)[0] == pytest.approx(KP * error - KV * 0.4, abs=1e-12)
     assert c.reference == command  # the reference stays the command as given
@@ -121,7 +121,7 @@ def test_a_revolute_joint_does_not_wrap():
     hw = FakeHardware(("wheel",))
     c = controller_on("revolute", hw)
     hw.set_state("wheel", -3.0)
-    c.set_command(3.0)
+    c.set_reference(3.0)
     c.update(0.0, DT)
     assert hw.command_buffer(EFFORT)[0] == pytest.approx(KP * 6.0)
 
@@ -138,7 +138,7 @@ def test_the_position_file_is_the_books_law_on_a_streamed_command(minimal_robot)
               (12.0, 0.1, 0.0), (0.412, 0.8716, 0.0)]
     for k, (command, q, qdot) in enumerate(states):
         hw.set_state("joint1", q, qdot)
-        controller.set_command(command)  # what /pos_cmd does: a position only
+        controller.set_reference(command)  # what /pos_cmd does: a position only
         manager.update(k * DT, DT)
         assert hw.command_buffer(EFFORT)[0] == pytest.approx(book_law(command, q, qdot), rel=1e-12, abs=1e-12)
 

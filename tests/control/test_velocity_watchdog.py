@@ -31,7 +31,7 @@ def step(c, hardware, t0: float, seconds: float) -> float:
 def test_without_a_timeout_an_old_command_is_kept_as_ros_control_does(hardware, robot):
     c = controller(hardware, robot)
     assert c.command_timeout_s is None
-    c.set_command(0.1)
+    c.set_reference(0.1)
     step(c, hardware, 0.0, 2.0)
     assert c.reference == pytest.approx(0.1)
     assert hardware.velocity[0] == pytest.approx(0.1, abs=1e-3)
@@ -40,22 +40,22 @@ def test_without_a_timeout_an_old_command_is_kept_as_ros_control_does(hardware, 
 
 def test_a_stale_command_is_replaced_by_zero_velocity(hardware, robot):
     c = controller(hardware, robot, command_timeout_s=0.2)
-    c.set_command(0.1)
+    c.set_reference(0.1)
     t = step(c, hardware, 0.0, 0.15)
     assert c.reference == pytest.approx(0.1) and not c.timed_out
     t = step(c, hardware, t, 0.1)  # 0.25 s after the command: past the timeout
     assert c.timed_out and c.reference == 0.0
     t = step(c, hardware, t, 0.5)
     assert hardware.velocity[0] == pytest.approx(0.0, abs=1e-3)  # held
-    assert c.command == pytest.approx(0.1)  # the last command is still visible, just not applied
+    assert c.reference_input == pytest.approx(0.1)  # the last command is still visible, just not applied
 
 
 def test_a_new_command_restarts_motion_and_the_timer(hardware, robot):
     c = controller(hardware, robot, command_timeout_s=0.2)
-    c.set_command(0.1)
+    c.set_reference(0.1)
     t = step(c, hardware, 0.0, 0.5)
     assert c.timed_out
-    c.set_command(-0.05)
+    c.set_reference(-0.05)
     t = step(c, hardware, t, 0.001)
     assert not c.timed_out and c.reference == pytest.approx(-0.05)
     t = step(c, hardware, t, 0.15)
@@ -68,7 +68,7 @@ def test_a_stream_of_commands_never_times_out(hardware, robot):
     c = controller(hardware, robot, command_timeout_s=0.2)
     t = 0.0
     for _ in range(40):  # 20 Hz for 2 s: each command younger than the timeout
-        c.set_command(0.1)
+        c.set_reference(0.1)
         t = step(c, hardware, t, 0.05)
         assert not c.timed_out
     assert hardware.velocity[0] == pytest.approx(0.1, abs=1e-3)
@@ -76,9 +76,9 @@ def test_a_stream_of_commands_never_times_out(hardware, robot):
 
 def test_the_same_value_sent_again_counts_as_a_new_command(hardware, robot):
     c = controller(hardware, robot, command_timeout_s=0.2)
-    c.set_command(0.1)
+    c.set_reference(0.1)
     t = step(c, hardware, 0.0, 0.19)
-    c.set_command(0.1)
+    c.set_reference(0.1)
     step(c, hardware, t, 0.19)
     assert not c.timed_out
 
@@ -95,10 +95,10 @@ def test_age_counts_in_loop_time_from_start(hardware, robot):
 
 def test_a_refused_command_does_not_refresh_the_watchdog(hardware, robot):
     c = controller(hardware, robot, command_timeout_s=0.2)
-    c.set_command(0.1)
+    c.set_reference(0.1)
     t = step(c, hardware, 0.0, 0.15)
     with pytest.raises(Exception):
-        c.set_command(float("nan"))
+        c.set_reference(float("nan"))
     step(c, hardware, t, 0.1)
     assert c.timed_out
 

@@ -234,7 +234,7 @@ def test_the_velocity_controller_takes_a_source_when_nothing_commands_it(write_s
         start_controllers=[JSC, VEL], commands={VEL: {"type": "constant", "value": -0.1}}))))
     session.run(0.5)
     assert session.manager.command_owner(VEL) is None
-    assert session.manager.controller(VEL).command == -0.1
+    assert session.manager.controller(VEL).reference_input == -0.1
     assert session.hardware.velocity[0] < -0.05
 
 
@@ -243,5 +243,5 @@ def test_the_admittance_controller_drives_the_chain_in_a_session(write_scenario)
     nac, vel = session.manager.controller(NAC), session.manager.controller(VEL)
     assert [c.name for c in session.manager.active] == [JSC, NAC, VEL]
     session.run(0.5)
-    assert vel.command == nac.velocity_reference
-    assert session.manager.references[0] == vel.command
+    assert vel.reference_input == nac.velocity_reference
+    assert session.manager.references[0] == vel.reference_input

@@ -228,7 +228,7 @@ def test_urdf_models_read_mass_geometry_and_gazebo_friction() -> None:
 def _session(gravity: float, command: float) -> Session:
     scenario = dataclasses.replace(scenario_for_robot("one_dof", "position"), gravity_m_s2=(0.0, 0.0, gravity))
     session = Session(scenario)
-    session.manager.controller("joint1_position_controller").set_command(command)
+    session.manager.controller("joint1_position_controller").set_reference(command)
     session.loop.run(1.0)
     return session
 

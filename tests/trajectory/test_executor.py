@@ -91,7 +91,7 @@ class Trace:
     q_ref: list[list[float]] = field(default_factory=list)
     v_ref: list[list[float]] = field(default_factory=list)
     a_ref: list[list[float]] = field(default_factory=list)
-    command: list[list[tuple[float, float, float]]] = field(default_factory=list)
+    reference_input: list[list[tuple[float, float, float]]] = field(default_factory=list)
     q: list[list[float]] = field(default_factory=list)
     v: list[list[float]] = field(default_factory=list)
     goal_id: list[int | None] = field(default_factory=list)
@@ -108,7 +108,7 @@ class Trace:
             trace.q_ref.append(list(executor.desired))
             trace.v_ref.append(list(executor.desired_velocity))
             trace.a_ref.append(list(executor.desired_acceleration))
-            trace.command.append([c.command for c in targets])
+            trace.reference_input.append([c.reference_input for c in targets])
             trace.q.append([hw.position[i] for i in index])
             trace.v.append([hw.velocity[i] for i in index])
             trace.goal_id.append(None if executor.active_goal is None else executor.active_goal.id)
@@ -471,7 +471,7 @@ def test_stopping_the_executor_mid_move_leaves_the_joint_at_rest_on_its_referenc
     session.manager.stop([TRAJ], session.loop.time_s)
     session.loop.run(duration_s=2.0)
     target = session.manager.controller(POS)
-    q_cmd, v_cmd, a_cmd = target.command
+    q_cmd, v_cmd, a_cmd = target.reference_input
     assert abs(session.hardware.velocity[0]) < 1e-3
     assert abs(session.hardware.position[0] - q_cmd) < 1e-3, (
         f"rests at {session.hardware.position[0]} m, reference {q_cmd} m (command velocity {v_cmd}, "
@@ -522,19 +522,19 @@ def test_chapter_mode_updates_references_at_the_stream_rate(write_scenario):
     session.loop.run(duration_s=1.2)
     start = trace.first_active(handle.id)
     end = trace.at(trace.t[start] + 1.0)
-    changes = [i for i in range(start + 1, end) if trace.command[i][0][0] != trace.command[i - 1][0][0]]
+    changes = [i for i in range(start + 1, end) if trace.reference_input[i][0][0] != trace.reference_input[i - 1][0][0]]
     assert changes, "the reference never moved"
     assert all((i - start) % 10 == 0 for i in changes), changes[:10]
     assert len(changes) >= 95  # a new value every 10 ms over the 1 s goal
     for i in range(start, end):
-        assert trace.command[i][0][1:] == (0.0, 0.0)  # positions only
+        assert trace.reference_input[i][0][1:] == (0.0, 0.0)  # positions only
     # Linear between the points: every held value lies on the line from last cycle's desired
     # position (at trace.t[start] - DT, where the plan starts) through the goal's points.
     for i in range(start, end, 10):
         tau = trace.t[i] - trace.t[start] + DT
         first = 0.5 + DT
         line = -0.5 + 0.1 * tau / first if tau <= first else -0.4 + 0.2 * (tau - first)
-        assert trace.command[i][0][0] == pytest.approx(line, abs=1e-9)
+        assert trace.reference_input[i][0][0] == pytest.approx(line, abs=1e-9)
 
 
 # ----------------------------------------------------------------------------- streamed references

@@ -61,10 +61,32 @@ def test_stopping_a_controller_clears_its_acceleration_reference(write_scenario)
     session = session_of(write_scenario)
     position = session.manager.controller("joint1_position_controller")
     session.manager.stop([TRAJ])
-    position.set_command(-0.5, 0.0, 3.0)
-    assert session.manager.context.acceleration_references[0] == 3.0
+    position.set_reference(-0.5, 0.0, 3.0)
+    assert session.manager.context.reference_accelerations[0] == 3.0
     session.manager.stop(["joint1_position_controller"])
-    assert session.manager.context.acceleration_references[0] == 0.0
+    assert session.manager.context.reference_accelerations[0] == 0.0
+
+
+def test_the_executor_owns_its_position_controllers_reference(write_scenario):
+    # Chained mode: the executor writes the reference interfaces; an edge's set_reference is refused
+    # naming it, and the goal's references are what the position controller uses.
+    session = session_of(write_scenario)
+    executor = session.manager.controller(TRAJ)
+    position = session.manager.controller("joint1_position_controller")
+    assert position.upstream == TRAJ
+    executor.submit(goal((1.0, -0.4)), now_s=0.0)
+    session.loop.run(0.5)
+    with pytest.raises(InvalidCommand, match=f"comes from controller '{TRAJ}'"):
+        position.set_reference(-0.1)
+    session.loop.run(0.001)
+    q, v, _ = position.reference_input
+    assert -0.5 < q < -0.4 and v > 0  # the goal's interpolated reference, not -0.1
+    assert session.manager.references[0] == q
+    session.manager.stop([TRAJ])  # the executor leaves its last position, without feed-forward
+    assert position.upstream is None
+    assert position.reference_input == (q, 0.0, 0.0)
+    position.set_reference(-0.1)  # the edge works again
+    assert position.reference_input == (-0.1, 0.0, 0.0)
 
 
 def test_negative_durations_are_refused(write_scenario):

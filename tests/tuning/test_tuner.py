@@ -122,7 +122,7 @@ def test_expression_source_feeds_the_controller_and_is_not_measured(tuner):
     run(tuner, 0.5)
     controller = tuner.manager.controller(POSITION)
     i = math.floor(0.499 * 100 + 1e-9)
-    assert controller.command[0] == pytest.approx(0.1 * math.sin(i / 5) - 0.5)
+    assert controller.reference_input[0] == pytest.approx(0.1 * math.sin(i / 5) - 0.5)
     assert tuner.measurement()["kind"] is None
 
 

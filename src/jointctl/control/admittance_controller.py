@@ -6,7 +6,7 @@ the force measured at the robot's force-torque sensor. Each cycle::
 
     f = K·(x_att - x) - B·v + F_sensed
     v_ref += f / M · dt,   clamped to ±max_velocity
-    velocity_controller.command = v_ref
+    velocity_controller's reference = v_ref
 
 At rest ``x = x_att + F/K``. Units: m, m/s, N, kg, N/m, N·s/m for a prismatic
 joint (rad, N·m... for a revolute one).
@@ -84,6 +84,8 @@ class AdmittanceController(Controller):
             raise ConfigError("must name a velocity controller of the same joint", source=self.source,
                               field=f"{self.field}.velocity_controller", value=self.velocity_controller)
         self.target = target
+        # Its reference interface (chained mode): written in place every cycle.
+        self._velocities, self._target_index = target.context.reference_velocities, target.index
 
     def set_gains(self, *, mass: float | None = None, stiffness: float | None = None,
                   damping: float | None = None) -> None:
@@ -124,4 +126,4 @@ class AdmittanceController(Controller):
         limit = self.max_velocity
         v_ref = limit if v_ref > limit else -limit if v_ref < -limit else v_ref
         self.velocity_reference = v_ref
-        self.target.set_command(v_ref)
+        self._velocities[self._target_index] = v_ref

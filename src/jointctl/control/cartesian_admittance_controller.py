@@ -298,7 +298,13 @@ class CartesianAdmittanceController(Controller):
                 raise ConfigError(f"must name a velocity controller of joint {joint!r}", source=self.source,
                                   field=f"{self.field}.velocity_controllers[{k}]", value=name)
             self.targets.append(target)
-        self._setters = [t.set_command for t in self.targets]
+        # Their reference interfaces (chained mode), written in place every cycle: by slice when
+        # the velocity controllers' joints are consecutive hardware joints, in order.
+        self._velocities = self.targets[0].context.reference_velocities
+        indices = [t.index for t in self.targets]
+        consecutive = indices == list(range(indices[0], indices[0] + len(indices)))
+        self._span = slice(indices[0], indices[0] + len(indices)) if consecutive else None
+        self._target_indices = indices
 
     def set_gains(self, *, stiffness=None, damping=None, inertia_estimate=None, attractor=None) -> None:
         """Change K, B, H or the attractor while running (validated; all or nothing; next cycle)."""
@@ -367,8 +373,7 @@ class CartesianAdmittanceController(Controller):
             self._tare_count += 1
             self.tare_force = self._tare_sum / self._tare_count
             self._tare = tuple(self.tare_force.tolist())
-            for setter in self._setters:
-                setter(0.0)
+            self._hand_over([0.0] * len(self.joint_names))
             return
         qd, jv = self._qd, self.jv
         vx, vy, vz = np.dot(jv, qd, out=self.velocity).tolist()
@@ -395,9 +400,17 @@ class CartesianAdmittanceController(Controller):
             for r, (lower, upper) in zip([r + a * period_s for r, a in zip(self.velocity_reference, qdd)],
                                          self._arm_limits)]
         values = ref + self._wrist_command(ref) if self.wrist_joints else ref  # arm joints, then wrist joints
-        commands = self.velocity_command = [values[k] for k in self._joint_order]
-        for setter, value in zip(self._setters, commands):
-            setter(value)
+        self._hand_over([values[k] for k in self._joint_order])
+
+    def _hand_over(self, velocities: list[float]) -> None:
+        """Write ``velocities`` [rad/s or m/s], per joint in ``joints`` order, into the velocity
+        controllers' reference interfaces."""
+        self.velocity_command = velocities
+        if self._span is not None:
+            self._velocities[self._span] = velocities
+        else:
+            for i, v in zip(self._target_indices, velocities):
+                self._velocities[i] = v
 
     # The wrist, with H diagonal, worked in the three dimensions of the flange's rotation. With
     # G = Jr_W·Jr_Wᵀ + λ²·I and Jr_W⁺ = Jr_Wᵀ·G⁻¹ (row w: p_wᵀ, p_w = G⁻¹·jr_w), P = Jr_W⁺·Jr_A, so

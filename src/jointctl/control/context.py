@@ -1,10 +1,23 @@
-"""What controllers of one manager share: per-joint references and the model feed-forward.
+"""What controllers of one manager share: per-joint reference interfaces and the model feed-forward.
 
-``references`` holds, per hardware joint, the reference in use by the
-controller commanding it (a position or a velocity); ``acceleration_references``
-the acceleration that comes with a position reference (from a trajectory),
-used by the inertia feed-forward. :class:`ModelFeedforward` computes gravity
-and inertia efforts of the robot model once per cycle for every joint.
+The *reference interfaces* (ros2_control's word) are the one way into a joint controller: lists
+per hardware joint, written by whoever gives the controller of that joint its reference and read
+by that controller in its update:
+
+- ``reference_positions`` [m or rad], ``reference_velocities`` [m/s or rad/s] and
+  ``reference_accelerations`` [m/s² or rad/s²]: a position controller reads all three (the
+  velocity as feed-forward through its derivative, the acceleration through the model's inertia
+  feed-forward); a velocity controller reads ``reference_velocities``.
+
+An upstream controller in the same loop (a trajectory executor, an admittance controller) writes
+them directly, every cycle, as a chained ros2_control controller writes its downstream's
+reference interfaces; an edge (a topic, a command source, the tuning page) goes through the
+controller's validating door, ``set_reference``, which writes the same slots.
+
+``references`` holds, per hardware joint, the reference *in use* by the controller commanding
+it (after clamping to the joint's range or velocity limit; NaN when no controller commands it):
+what the trace records as ``<joint>.reference``. :class:`ModelFeedforward` computes gravity and
+inertia efforts of the robot model once per cycle for every joint.
 """
 
 from __future__ import annotations
@@ -22,7 +35,7 @@ class ModelFeedforward:
     """Gravity ``g(q)`` and inertia ``M(q)·q̈_ref`` efforts at the measured ``q``, for every joint.
 
     The manager runs :meth:`update` once per cycle, right before the first controller that uses
-    it (so after upstream controllers have set this cycle's acceleration references); the
+    it (so after upstream controllers have written this cycle's reference accelerations); the
     controllers then read ``gravity`` and ``inertia`` (lists per hardware joint, N or N·m).
     """
 
@@ -45,13 +58,13 @@ class ModelFeedforward:
             dynamics.set_pose(context.hardware.position, inertia=self.wants_inertia)
             self.gravity = dynamics.gravity_at_pose().tolist()
             if self.wants_inertia:
-                self.inertia = dynamics.inertia_at_pose(context.acceleration_references).tolist()
+                self.inertia = dynamics.inertia_at_pose(context.reference_accelerations).tolist()
             return
         self._q[self._to_model] = context.hardware.position
         dynamics.set_pose(self._q, inertia=self.wants_inertia)
         self.gravity = dynamics.gravity_at_pose()[self._to_model].tolist()
         if self.wants_inertia:
-            self._qdd[self._to_model] = context.acceleration_references
+            self._qdd[self._to_model] = context.reference_accelerations
             self.inertia = dynamics.inertia_at_pose(self._qdd)[self._to_model].tolist()
 
 
@@ -65,7 +78,9 @@ class ControlContext:
         self.gravity_m_s2 = tuple(gravity_m_s2)
         n = len(hardware.joint_names)
         self.references: list[float] = [math.nan] * n
-        self.acceleration_references: list[float] = [0.0] * n
+        self.reference_positions: list[float] = [0.0] * n
+        self.reference_velocities: list[float] = [0.0] * n
+        self.reference_accelerations: list[float] = [0.0] * n
         self._feedforward: ModelFeedforward | None = None
 
     def set_gravity(self, gravity_m_s2: tuple[float, float, float]) -> None:

@@ -7,7 +7,9 @@ command lists it writes) and then updated every cycle with
 ``(joint, interface)`` pairs; the manager never lets two running controllers
 claim the same one. A controller may write another controller's reference
 (chaining, as ros2_control's reference interfaces): it names it in ``downstream``, claims
-``(that controller, "reference")`` and runs before it in every cycle.
+``(that controller, "reference")`` and runs before it in every cycle. While it runs, the
+downstream controller is in *chained mode* (its ``upstream`` names the writer): its reference
+comes from that controller only, and its edge door (``set_reference``) refuses.
 
 Words, used one way everywhere: a controller's *reference* is its input (the position or
 velocity it tracks: from a command topic, a command source or an upstream controller; the trace's
@@ -31,8 +33,11 @@ class Controller(ABC):
 
     #: Joint names this controller commands; empty for broadcasters.
     joints: tuple[str, ...] = ()
-    #: Names of the controllers whose command this one writes (chaining); they run after it.
+    #: Names of the controllers whose reference this one writes (chaining); they run after it.
     downstream: tuple[str, ...] = ()
+    #: The running controller that writes this one's reference interfaces (chained mode), if any;
+    #: kept by the manager.
+    upstream: str | None = None
     #: Whether it reads the model feed-forward (``context.feedforward``) in its update: the manager
     #: then runs the feed-forward once per cycle, before its first user. Set by configure().
     uses_model: bool = False

@@ -3,11 +3,16 @@
 
 Both read ``joint`` and ``pid`` from their YAML entry, claim the joint's
 effort interface, and clamp their PID output to the joint's effort limit.
-Commands arrive through :meth:`set_command` (the door edges use: one atomic
-store, read by the next cycle); a command that is not a finite number is
-refused with :class:`~jointctl.errors.InvalidCommand` and the previous one
-stays. Position commands are clamped to the joint's range and velocity
-commands to its velocity limit, as ros_control does.
+
+Their reference (input) comes one way: the reference interfaces of their joint in the
+manager's :class:`~jointctl.control.context.ControlContext` (position, velocity,
+acceleration), read every update. An upstream controller in the loop (chained mode) writes
+those slots directly; edges use :meth:`~JointPositionController.set_reference`, which
+refuses a value that is not a finite number with :class:`~jointctl.errors.InvalidCommand`
+(the previous reference stays), refuses while the controller is chained (its upstream owns
+the reference), and writes the same slots, read by the next cycle. Position references are
+clamped to the joint's range and velocity references to its velocity limit, as ros_control
+does; the clamped value is the reference in use (``reference``, the trace's column).
 """
 
 from __future__ import annotations
@@ -59,18 +64,30 @@ class _EffortJointController(Controller):
         self.effort_command = hardware.command_buffer(EFFORT)
         if self.context is None:  # built outside a manager
             self.context = ControlContext(hardware, robot)
-        self.references = self.context.references
+        context = self.context
+        self.references = context.references
+        # The joint's reference interfaces (shared lists, indexed by hardware joint).
+        self._positions = context.reference_positions
+        self._velocities = context.reference_velocities
+        self._accelerations = context.reference_accelerations
 
     @property
     def reference(self) -> float:
         """The reference in use (position in m or rad, or velocity in m/s or rad/s), after clamping."""
         return self.references[self.index]
 
+    def _check_edge(self, value: float) -> None:
+        """Refuse an edge's reference while an upstream controller owns this one's (chained mode)."""
+        if self.upstream is not None:
+            raise InvalidCommand(f"the reference comes from controller {self.upstream!r} (chained)",
+                                 source=self.name, field="reference", value=value)
+
     def set_gains(self, gains: PidGains) -> None:
         """Change the PID gains while running; applied at the next cycle."""
         self.pid.set_gains(gains)
 
     def _finite(self, value: float, what: str) -> float:
+        """``value`` as a finite float, or InvalidCommand naming ``what``."""
         # Fast path for the common case (a finite float); x - x is 0.0 only when x is finite.
         if type(value) is float and value - value == 0.0:
             return value
@@ -131,7 +148,6 @@ class JointPositionController(_EffortJointController):
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         super().configure(hardware, robot)
-        self._command = (0.0, 0.0, 0.0)
         self.joint_damping = robot.joint(self.joint).damping
         self.continuous = robot.joint(self.joint).type == "continuous"
         self._gravity = "gravity" in self.feedforward_terms
@@ -140,40 +156,38 @@ class JointPositionController(_EffortJointController):
         self.uses_model = self._gravity or self._inertia
         self.uses_model_inertia = self._inertia
         self._model = self.context.feedforward if self.uses_model else None
-        self._accelerations = self.context.acceleration_references
 
-    def set_command(self, position: float, velocity: float = 0.0, acceleration: float = 0.0) -> None:
-        """Command a position [m or rad], with optional velocity [/s] and acceleration [/s²] references."""
+    def set_reference(self, position: float, velocity: float = 0.0, acceleration: float = 0.0) -> None:
+        """The edge door: a position [m or rad] with optional velocity [/s] and acceleration [/s²]
+        references, validated, into the joint's reference interfaces (refused while chained)."""
         # One check for the usual case, three finite floats (x - x is 0.0 only for a finite x).
         if not (type(position) is float and type(velocity) is float and type(acceleration) is float
                 and position - position + velocity - velocity + acceleration - acceleration == 0.0):
-            position = self._finite(position, "command.position")
-            velocity = self._finite(velocity, "command.velocity")
-            acceleration = self._finite(acceleration, "command.acceleration")
-        self._command = (position, velocity, acceleration)
-        self._accelerations[self.index] = acceleration
-
-    def set_reference(self, position: float, velocity: float, acceleration: float) -> None:
-        """The door for a chained controller upstream in the same loop (a trajectory executor),
-        whose references are finite by construction: no validation, same effect as set_command."""
-        self._command = (position, velocity, acceleration)
-        self._accelerations[self.index] = acceleration
+            position = self._finite(position, "reference.position")
+            velocity = self._finite(velocity, "reference.velocity")
+            acceleration = self._finite(acceleration, "reference.acceleration")
+        self._check_edge(position)
+        i = self.index
+        self._velocities[i], self._accelerations[i] = velocity, acceleration
+        self._positions[i] = position
 
     @property
-    def command(self) -> tuple[float, float, float]:
-        return self._command
+    def reference_input(self) -> tuple[float, float, float]:
+        """The reference as given (position, velocity, acceleration), before clamping."""
+        i = self.index
+        return self._positions[i], self._velocities[i], self._accelerations[i]
 
     def start(self, time_s: float) -> None:
         self.hardware.read()
-        self._command = (self.hardware.position[self.index], 0.0, 0.0)
-        self._accelerations[self.index] = 0.0
+        i = self.index
+        self._positions[i], self._velocities[i], self._accelerations[i] = self.hardware.position[i], 0.0, 0.0
         self.pid.reset()
 
     def update(self, time_s: float, period_s: float) -> None:
-        position, velocity, _ = self._command
+        i = self.index
+        position, velocity = self._positions[i], self._velocities[i]
         lower, upper = self.lower, self.upper
         position = lower if position < lower else upper if position > upper else position
-        i = self.index
         self.references[i] = position
         hw = self.hardware
         error = position - hw.position[i]
@@ -196,12 +210,13 @@ class JointPositionController(_EffortJointController):
 class JointVelocityController(_EffortJointController):
     """Effort from a PID on velocity error; ``d`` acts on the error's backward difference.
 
-    On start the command is zero velocity.
+    On start the reference is zero velocity.
 
     ``command_timeout_s`` (optional, positive; default none: no watchdog, as ros_control): a
-    command older than this in loop time (since the cycle that first saw it) is replaced by zero
-    velocity, every cycle, until a new command arrives: a silent commander holds the joint
-    instead of driving it on forever.
+    reference from an edge older than this in loop time (since the cycle that first saw it) is
+    replaced by zero velocity, every cycle, until a new one arrives: a silent commander holds the
+    joint instead of driving it on forever. In chained mode the watchdog is off: the upstream
+    controller writes the reference every cycle of the same loop.
     """
 
     controlled = "velocity"  # the quantity the reference is compared with
@@ -213,24 +228,27 @@ class JointVelocityController(_EffortJointController):
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         super().configure(hardware, robot)
-        self._command = 0.0
         self._last_error = 0.0
         self._token = self._seen = None
         self._command_time = 0.0
         self.timed_out = False
 
-    def set_command(self, velocity: float) -> None:
-        """Command a velocity [m/s or rad/s]."""
-        self._command = self._finite(velocity, "command")
-        # Stored after the command: a cycle that sees this token sees this command (or a newer one).
+    def set_reference(self, velocity: float) -> None:
+        """The edge door: a velocity [m/s or rad/s], validated, into the joint's reference
+        interface (refused while chained)."""
+        velocity = self._finite(velocity, "reference")
+        self._check_edge(velocity)
+        self._velocities[self.index] = velocity
+        # Stored after the reference: a cycle that sees this token sees it (or a newer one).
         self._token = object()
 
     @property
-    def command(self) -> float:
-        return self._command
+    def reference_input(self) -> float:
+        """The reference as given, before clamping [m/s or rad/s]."""
+        return self._velocities[self.index]
 
     def start(self, time_s: float) -> None:
-        self._command = 0.0
+        self._velocities[self.index] = 0.0
         self._last_error = 0.0
         self._token = self._seen = None
         self._command_time = time_s
@@ -238,20 +256,20 @@ class JointVelocityController(_EffortJointController):
         self.pid.reset()
 
     def update(self, time_s: float, period_s: float) -> None:
-        velocity = self._command
+        i = self.index
+        velocity = self._velocities[i]
         timeout = self.command_timeout_s
-        if timeout is not None:
+        if timeout is not None and self.upstream is None:
             token = self._token
-            if token is not self._seen:  # a new command: its age counts from this cycle
+            if token is not self._seen:  # a new reference: its age counts from this cycle
                 self._seen = token
                 self._command_time = time_s
-                velocity = self._command
+                velocity = self._velocities[i]
             self.timed_out = time_s - self._command_time > timeout
             if self.timed_out:
                 velocity = 0.0
         limit = self.velocity_limit
         velocity = -limit if velocity < -limit else limit if velocity > limit else velocity
-        i = self.index
         self.references[i] = velocity
         error = velocity - self.hardware.velocity[i]
         rate = (error - self._last_error) / period_s

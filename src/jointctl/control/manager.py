@@ -252,7 +252,7 @@ class ControllerManager:
                 for joint in c.joints:
                     index = self.hardware.joint_index(joint)
                     self.references[index] = math.nan
-                    self.context.acceleration_references[index] = 0.0
+                    self.context.reference_accelerations[index] = 0.0
         self._refresh()
 
     # -- failures (the loop thread) ---------------------------------------------------
@@ -275,7 +275,7 @@ class ControllerManager:
         indices = tuple(self.hardware.joint_index(j) for j in joints)
         for index in indices:
             self.references[index] = math.nan
-            self.context.acceleration_references[index] = 0.0
+            self.context.reference_accelerations[index] = 0.0
         self._safe_indices = tuple(dict.fromkeys(self._safe_indices + indices))
         self.apply_safe_actions()
         self._refresh()
@@ -354,6 +354,13 @@ class ControllerManager:
             # M(q) is worth its cost only while a running controller reads the inertia term.
             self.context.feedforward.wants_inertia = any(c.uses_model_inertia for c in self._active)
         self.update_calls = tuple(calls)
+        # Chained mode (ros2_control's): a controller whose reference interfaces a running
+        # upstream controller writes takes its reference from that controller alone.
+        for c in self._loaded.values():
+            c.upstream = None
+        for c in self._active:
+            for name in c.downstream:
+                self._loaded[name].upstream = c.name
 
     @property
     def active(self) -> tuple[Controller, ...]:
@@ -367,7 +374,7 @@ class ControllerManager:
                                   value=name) from None
 
     def command_owner(self, controller_name: str) -> Controller | None:
-        """The running controller that writes ``controller_name``'s command (chaining), if any."""
+        """The running controller that writes ``controller_name``'s reference (chaining), if any."""
         return next((c for c in self._active if controller_name in c.downstream), None)
 
     def commanding(self, joint: str) -> Controller | None:

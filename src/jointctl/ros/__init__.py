@@ -2,5 +2,5 @@
 
 It runs a scenario's loop as a ROS node: joint states, sensor wrenches and controller states
 published, controller commands subscribed, trajectory goals served as actions, all through the
-same doors (``set_command``, ``TrajectoryExecutor.submit``) every other edge uses.
+same doors (``set_reference``, ``TrajectoryExecutor.submit``) every other edge uses.
 """

@@ -151,7 +151,7 @@ class RosNode:
     def _command_callback(self, controller):
         def on_command(msg: Float64) -> None:
             try:
-                controller.set_command(msg.data)
+                controller.set_reference(msg.data)
             except InvalidCommand as exc:
                 rospy.logwarn("jointctl: refused %s", exc)
         return on_command

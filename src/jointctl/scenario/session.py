@@ -192,9 +192,9 @@ def _goal_sender(session: Session, goals):
 def _feed(source: CommandSource, controller):
     """A loop input that hands ``source``'s value at loop time t to ``controller``."""
     sample = source.sample
-    set_command = controller.set_command
+    set_reference = controller.set_reference
 
     def feed(time_s: float) -> None:
-        set_command(sample(time_s))
+        set_reference(sample(time_s))
 
     return feed

@@ -161,10 +161,15 @@ class TrajectoryExecutor(Controller):
                                   field=f"{self.field}.position_controllers", value=name)
             targets.append(c)
         self.targets = tuple(targets)
-        # One function for every target when they share their class's door (the usual case): the
-        # cycle then maps it over the targets and the references without a Python loop.
-        doors = {type(c).set_reference for c in self.targets}
-        self._set_reference = doors.pop() if len(doors) == 1 else _set_reference
+        # The targets' reference interfaces (chained mode): the context's per-joint lists, written
+        # in place; by slice when the executor's joints are consecutive hardware joints, in order.
+        context = self.targets[0].context
+        self._positions = context.reference_positions
+        self._velocities = context.reference_velocities
+        self._accelerations = context.reference_accelerations
+        first = self.hw_index[0]
+        consecutive = self.hw_index == list(range(first, first + len(self.hw_index)))
+        self._span = slice(first, first + len(self.hw_index)) if consecutive else None
 
     def start(self, time_s: float) -> None:
         self.hardware.read()
@@ -188,8 +193,8 @@ class TrajectoryExecutor(Controller):
         self._running = False
         self.goals.abort_all(why, time_s)
         self._plan = None
-        for target, q in zip(self.targets, self._ref[0::3]):
-            target.set_command(q, 0.0, 0.0)  # the position controllers hold, without feed-forward
+        self._ref = interleave(self._ref[0::3], self._zeros, self._zeros)
+        self._write()  # the position controllers hold, without feed-forward
 
     # -- doors (any thread) ------------------------------------------------------------------
     def submit(self, trajectory: JointTrajectory, *, now_s: float | None = None,
@@ -329,27 +334,27 @@ class TrajectoryExecutor(Controller):
         elif time_s > self._stream_deadline_s:  # watchdog: the stream stopped
             self._ref = interleave(self._ref[0::3], self._zeros, self._zeros)
             self._stream_deadline_s = math.inf
-        # _write(), inline: this is the cycle's main cost after the references' own.
-        if self.velocity_feedforward:
-            values = iter(self._ref)  # map takes a target, then q, v and a of its joint, from the row
-            for _ in map(self._set_reference, self.targets, values, values, values):
-                pass
-        else:
-            for _ in map(self._set_reference, self.targets, self._ref[0::3], self._zeros, self._zeros):
-                pass
+        self._write()
         if goal is not None and time_s + 1e-9 >= self._supervise_at:
             self._supervise(time_s, goal, plan)
 
     def _write(self) -> None:
-        """The references in hand to the position controllers (inline in :meth:`update`). They come
+        """The references in hand into the position controllers' reference interfaces. They come
         from validated goals and streams through polynomials: finite by construction."""
+        ref = self._ref
+        positions = ref[0::3]
         if self.velocity_feedforward:
-            values = iter(self._ref)
-            for _ in map(self._set_reference, self.targets, values, values, values):
-                pass
+            velocities, accelerations = ref[1::3], ref[2::3]
         else:
-            for _ in map(self._set_reference, self.targets, self._ref[0::3], self._zeros, self._zeros):
-                pass
+            velocities = accelerations = self._zeros
+        span = self._span
+        if span is not None:
+            self._positions[span] = positions
+            self._velocities[span] = velocities
+            self._accelerations[span] = accelerations
+            return
+        for i, q, v, a in zip(self.hw_index, positions, velocities, accelerations):
+            self._positions[i], self._velocities[i], self._accelerations[i] = q, v, a
 
     def _state(self) -> tuple[Row, Row, Row]:
         ref = self._ref
@@ -415,8 +420,3 @@ class TrajectoryExecutor(Controller):
                            f"joint {self.joint_names[worst]!r} ended "
                            f"{abs(desired[worst] - actual[worst]):.4g} from its goal "
                            f"{self.goal_time_s} s after the end", time_s)
-
-
-def _set_reference(target: JointPositionController, position: float, velocity: float, acceleration: float) -> None:
-    """``target.set_reference`` for targets of different classes."""
-    target.set_reference(position, velocity, acceleration)

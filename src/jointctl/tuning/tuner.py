@@ -114,16 +114,16 @@ class Tuner:
             "joint": self.default_joint,
             "sensors": list(self.hardware.sensor_names),
             "controllers": [{"name": c.name, "joint": c.joint, "quantity": c.controlled,
-                             "reference": self._command_now(c)} for c in self.commandable.values()],
+                             "reference": self._reference_now(c)} for c in self.commandable.values()],
             "gains": [g.describe() for g in self.groups.values()],
             "can_drop": self.drop_object is not None,
             "gravity_z_m_s2": self._gravity_z(),
             "controller_file": str(self.scenario.controller_file),
         }
 
-    def _command_now(self, controller) -> float:
-        command = controller.command
-        return float(command[0] if isinstance(command, tuple) else command)
+    def _reference_now(self, controller) -> float:
+        given = controller.reference_input
+        return float(given[0] if isinstance(given, tuple) else given)
 
     def status(self) -> dict[str, Any]:
         status = {"time_s": self.loop.time_s, "paused": self.paused, "epoch": self.epoch,
@@ -255,7 +255,7 @@ class Tuner:
             pending.popleft()(time_s)
         self._spawn_objects(time_s)
         for feed in self._feeds.values():
-            feed.controller.set_command(feed.source.sample(time_s - feed.started_s))
+            feed.controller.set_reference(feed.source.sample(time_s - feed.started_s))
         if self.paused or self.reset_wanted or self.shutdown:
             self.loop.request_stop()
 
