@@ -4,7 +4,10 @@
 feeds position, velocity and acceleration references to one position
 controller per joint, every cycle (or at ``stream_rate_hz``, holding in
 between, as the chapter's action servers stream to their position
-controllers). Goals arrive through :meth:`TrajectoryExecutor.submit` from any
+controllers). Without ``position_controllers`` it commands the joints'
+``position`` command interfaces itself, as ros_control's
+``position_controllers/JointTrajectoryController`` does: for hardware that
+servos its joints itself (an industrial controller), with no PID in front. Goals arrive through :meth:`TrajectoryExecutor.submit` from any
 thread and are validated at once (accepted or rejected, nothing moves on a
 rejection); the loop picks an accepted goal up at the start of its next cycle.
 
@@ -41,7 +44,7 @@ from jointctl.control.controller import Controller
 from jointctl.control.joint_controllers import JointPositionController
 from jointctl.control.params import Params
 from jointctl.errors import ConfigError, InvalidCommand
-from jointctl.hardware.interface import HardwareInterface
+from jointctl.hardware.interface import POSITION, HardwareInterface
 from jointctl.model.robot_model import RobotModel
 from jointctl.trajectory.errors import InvalidTrajectory, TrajectoryErrorCode
 from jointctl.trajectory.goals import GoalHandle, GoalQueue, GoalResult, GoalStatus, TrajectoryFeedback
@@ -65,12 +68,15 @@ class TrajectoryExecutor(Controller):
         if not isinstance(joints, list) or not joints or not all(isinstance(j, str) for j in joints):
             raise params.error("must be a non-empty list of joint names", "joints", joints)
         self.joint_names = tuple(joints)
-        controllers = params.raw("position_controllers")
-        if (not isinstance(controllers, list) or len(controllers) != len(joints)
+        controllers = params.raw("position_controllers", None)
+        if controllers is None:  # it commands the joints' position interfaces itself
+            self.joints = self.joint_names
+        elif (not isinstance(controllers, list) or len(controllers) != len(joints)
                 or not all(isinstance(c, str) for c in controllers)):
             raise params.error("must list one position controller per joint, in the order of joints",
                                "position_controllers", controllers)
-        self.downstream = tuple(controllers)
+        else:
+            self.downstream = tuple(controllers)
         self.interpolation = params.string("interpolation", "cubic")
         if self.interpolation not in INTERPOLATIONS:
             raise params.error(f"must be one of {', '.join(INTERPOLATIONS)}", "interpolation",
@@ -138,7 +144,9 @@ class TrajectoryExecutor(Controller):
 
     # -- controller contract -----------------------------------------------------------------
     def claimed_interfaces(self) -> tuple[tuple[str, str], ...]:
-        return tuple((c, "reference") for c in self.downstream)
+        if self.downstream:
+            return tuple((c, "reference") for c in self.downstream)
+        return tuple((j, POSITION) for j in self.joint_names)
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         self.hardware = hardware
@@ -151,8 +159,24 @@ class TrajectoryExecutor(Controller):
             index = self.hw_index[0]
             self._of_joints = lambda values: (values[index],)
         self.specs: tuple[JointSpec, ...] = joint_specs_from_model(robot, self.joint_names)
+        first = self.hw_index[0]
+        consecutive = self.hw_index == list(range(first, first + len(self.hw_index)))
+        self._span = slice(first, first + len(self.hw_index)) if consecutive else None
+        if not self.downstream:  # the hardware's position command interfaces, written directly
+            for k, joint in enumerate(self.joint_names):
+                if POSITION not in hardware.command_interfaces(joint):
+                    raise ConfigError("the joint has no position command interface (list position_controllers "
+                                      "to command it through position controllers)", source=self.source,
+                                      field=f"{self.field}.joints[{k}]", value=joint)
+            n = len(hardware.joint_names)
+            self._positions = hardware.command_buffer(POSITION)
+            self._velocities, self._accelerations = [0.0] * n, [0.0] * n  # not sent: the hardware interpolates
+            self._in_use = self.context.references if self.context is not None else None
 
     def bind_downstream(self, controllers: dict[str, Controller]) -> None:
+        if not self.downstream:  # commanding position interfaces: nothing to bind
+            self.targets = ()
+            return
         targets = []
         for joint, name in zip(self.joint_names, self.downstream):
             c = controllers[name]
@@ -167,9 +191,7 @@ class TrajectoryExecutor(Controller):
         self._positions = context.reference_positions
         self._velocities = context.reference_velocities
         self._accelerations = context.reference_accelerations
-        first = self.hw_index[0]
-        consecutive = self.hw_index == list(range(first, first + len(self.hw_index)))
-        self._span = slice(first, first + len(self.hw_index)) if consecutive else None
+        self._in_use = None  # the position controllers record what they use
 
     def start(self, time_s: float) -> None:
         self.hardware.read()
@@ -352,9 +374,14 @@ class TrajectoryExecutor(Controller):
             self._positions[span] = positions
             self._velocities[span] = velocities
             self._accelerations[span] = accelerations
+            if self._in_use is not None:  # commanding position interfaces: the trace's reference
+                self._in_use[span] = positions
             return
         for i, q, v, a in zip(self.hw_index, positions, velocities, accelerations):
             self._positions[i], self._velocities[i], self._accelerations[i] = q, v, a
+        if self._in_use is not None:
+            for i, q in zip(self.hw_index, positions):
+                self._in_use[i] = q
 
     def _state(self) -> tuple[Row, Row, Row]:
         ref = self._ref

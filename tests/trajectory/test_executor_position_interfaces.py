@@ -1,0 +1,119 @@
+"""The executor without position controllers: it commands the joints' position interfaces itself,
+for hardware that servos its joints (an industrial controller), as ros_control's
+position_controllers/JointTrajectoryController does."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import yaml
+
+from jointctl.control import ControllerManager
+from jointctl.errors import ConfigError
+from jointctl.hardware.interface import POSITION, HardwareInterface
+from jointctl.model import load_robot_model
+from jointctl.paths import robots_dir
+from jointctl.runtime.loop import ControlLoop
+from jointctl.trajectory.executor import GoalStatus
+from jointctl.trajectory.messages import JointTrajectory, JointTrajectoryPoint
+
+TRAJ = "arm7dof_trajectory_controller"
+JOINTS = tuple(f"joint{k}" for k in range(7))
+
+
+class ServoedHardware(HardwareInterface):
+    """A robot that follows its position commands exactly, one period late (a servo drive)."""
+
+    def __init__(self, interfaces=frozenset({POSITION})) -> None:
+        super().__init__(JOINTS)
+        self.interfaces = frozenset(interfaces)
+        self.sent: list[list[float]] = []
+
+    def command_interfaces(self, joint: str) -> frozenset[str]:
+        return self.interfaces
+
+    def read(self) -> None:
+        pass
+
+    def write(self) -> None:
+        self.sent.append(list(self.command_buffer(POSITION)))
+
+    def advance(self, period_s: float) -> None:
+        if self.sent:
+            self.position[:] = self.sent[-1]
+
+
+@pytest.fixture
+def write_yaml(tmp_path):
+    def write(content, name: str = "controllers.yaml"):
+        path = tmp_path / name
+        path.write_text(yaml.safe_dump(content, sort_keys=False))
+        return path
+    return write
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return load_robot_model(robots_dir() / "arm7dof" / "urdf" / "arm7dof.xacro")
+
+
+def manager_of(hardware, arm, write_yaml, **changes) -> ControllerManager:
+    executor = {"type": "trajectory_controllers/JointTrajectoryExecutor", "joints": list(JOINTS),
+                "interpolation": "cubic", **changes}
+    manager = ControllerManager(hardware, arm)
+    manager.load_file(write_yaml({"arm7dof": {TRAJ: executor}}))
+    return manager
+
+
+def goal(q_end: list[float], t_s: float) -> JointTrajectory:
+    return JointTrajectory(JOINTS, (JointTrajectoryPoint(positions=tuple(q_end), time_from_start_s=t_s),))
+
+
+def test_it_claims_and_writes_the_position_interfaces(arm, write_yaml) -> None:
+    hw = ServoedHardware()
+    hw.position[:] = [0.1] * 7
+    manager = manager_of(hw, arm, write_yaml)
+    executor = manager.load(TRAJ)
+    assert executor.claimed_interfaces() == tuple((j, POSITION) for j in JOINTS)
+    assert executor.downstream == () and executor.joints == JOINTS
+    manager.start([TRAJ])
+    loop = ControlLoop(hw, manager)
+    loop.run(cycles=1)
+    assert hw.sent[-1] == [0.1] * 7  # holds where it starts
+    target = [0.1, 0.3, -0.1, -0.2, 0.2, 0.3, 0.0]
+    handle = executor.submit(goal(target, 4.0), now_s=loop.time_s)
+    loop.run(2.0)
+    # Halfway through a cubic from rest to rest: the midpoint (symmetric profile).
+    midpoint = [0.1 + (q - 0.1) / 2 for q in target]
+    assert hw.sent[-1] == pytest.approx(midpoint, abs=5e-3)
+    assert manager.references == pytest.approx(hw.sent[-1], abs=1e-12)  # the trace's reference
+    loop.run(3.0)
+    assert hw.sent[-1] == pytest.approx(target, abs=1e-12)
+    assert handle.status is GoalStatus.SUCCEEDED
+
+
+def test_a_joint_without_a_position_interface_is_refused_naming_it(arm, write_yaml) -> None:
+    manager = manager_of(ServoedHardware(interfaces={"effort"}), arm, write_yaml)
+    with pytest.raises(ConfigError, match="no position command interface") as info:
+        manager.load(TRAJ)
+    assert info.value.field == f"arm7dof.{TRAJ}.joints[0]"
+    assert info.value.value == "joint0"
+
+
+def test_a_failing_executor_leaves_the_joints_holding_their_measured_position(arm, write_yaml) -> None:
+    hw = ServoedHardware()
+    hw.position[:] = [0.2] * 7
+    manager = manager_of(hw, arm, write_yaml)
+    executor = manager.load(TRAJ)
+    manager.start([TRAJ])
+    loop = ControlLoop(hw, manager)
+    handle = executor.submit(goal([0.6] * 7, 3.0), now_s=0.0)
+    loop.run(1.5)
+    moving = list(hw.position)
+    assert all(0.2 < q < 0.6 for q in moving)
+    executor._plan.at = lambda t, dt: [math.nan] * 21  # a broken plan: non-finite positions this cycle
+    loop.run(cycles=1)
+    assert manager.failures and manager.failures[0].controller == TRAJ
+    assert handle.status is GoalStatus.ABORTED
+    assert hw.sent[-1] == pytest.approx(moving, abs=1e-12)  # the safe action: the measured position
