@@ -15,6 +15,7 @@ from jointctl.hardware.interface import POSITION, HardwareInterface
 from jointctl.model import load_robot_model
 from jointctl.paths import robots_dir
 from jointctl.runtime.loop import ControlLoop
+from jointctl.trajectory.errors import InvalidTrajectory
 from jointctl.trajectory.executor import GoalStatus
 from jointctl.trajectory.messages import JointTrajectory, JointTrajectoryPoint
 
@@ -117,3 +118,29 @@ def test_a_failing_executor_leaves_the_joints_holding_their_measured_position(ar
     assert manager.failures and manager.failures[0].controller == TRAJ
     assert handle.status is GoalStatus.ABORTED
     assert hw.sent[-1] == pytest.approx(moving, abs=1e-12)  # the safe action: the measured position
+
+
+def test_a_hardware_fault_aborts_the_goal_refuses_new_ones_and_holds(arm, write_yaml) -> None:
+    hw = ServoedHardware()
+    hw.position[:] = [0.2] * 7
+    manager = manager_of(hw, arm, write_yaml)
+    executor = manager.load(TRAJ)
+    manager.start([TRAJ])
+    loop = ControlLoop(hw, manager)
+    handle = executor.submit(goal([0.6] * 7, 3.0), now_s=0.0)
+    loop.run(1.5)
+    assert handle.status is GoalStatus.ACTIVE
+    hw.fault = "no joint state from 10.0.0.2:11002 for 1.0 s"
+    loop.run(cycles=1)
+    assert handle.status is GoalStatus.ABORTED
+    assert "no joint state from 10.0.0.2:11002" in handle.result.error_string
+    held = list(hw.position)
+    loop.run(0.5)
+    assert hw.sent[-1] == pytest.approx(held, abs=1e-12)  # holds the measured position
+    with pytest.raises(InvalidTrajectory, match="the hardware cannot be commanded: no joint state"):
+        executor.submit(goal([0.3] * 7, 3.0), now_s=loop.time_s)
+    hw.fault = None  # the state flows again: goals are accepted and run from where the robot is
+    again = executor.submit(goal([0.3] * 7, 3.0), now_s=loop.time_s)
+    loop.run(4.0)
+    assert again.status is GoalStatus.SUCCEEDED
+    assert hw.sent[-1] == pytest.approx([0.3] * 7, abs=1e-12)

@@ -94,6 +94,9 @@ class HardwareInterface(ABC):
     effort: list[float]
     #: The simulation door, on simulated hardware only.
     simulation: SimulationDoor | None = None
+    #: Why the robot cannot be commanded now (a lost connection, stale state), or None. Simulated
+    #: hardware never has one; a trajectory executor aborts its goal and refuses new ones while set.
+    fault: str | None = None
 
     def __init__(self, joint_names: tuple[str, ...], sensor_names: tuple[str, ...] = ()) -> None:
         self.joint_names = tuple(joint_names)

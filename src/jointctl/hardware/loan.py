@@ -31,6 +31,11 @@ class HardwareLoan:
         self.effort = hardware.effort
         self.wrenches = hardware.wrenches
 
+    @property
+    def fault(self) -> str | None:
+        """Why the hardware cannot be commanded now, or None (see ``HardwareInterface.fault``)."""
+        return self._hardware.fault
+
     def joint_index(self, name: str, *, source: str | None = None, field: str = "joint") -> int:
         return self._hardware.joint_index(name, source=source, field=field)
 

@@ -268,6 +268,10 @@ class TrajectoryExecutor(Controller):
         if not self._running:
             raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL, "the trajectory controller is not running",
                                     value=self.name)
+        fault = self.hardware.fault
+        if fault is not None:
+            raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL, f"the hardware cannot be commanded: {fault}",
+                                    value=self.name)
         points = trajectory.points if isinstance(trajectory, JointTrajectory) else ()
         if isinstance(points, tuple) and 0 < len(points) < self.min_points:
             raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL,
@@ -340,6 +344,9 @@ class TrajectoryExecutor(Controller):
         if self._streamed is not None:
             self._take_stream(time_s)
         goal = goals.active
+        if goal is not None and self.hardware.fault is not None:  # e.g. the robot's state went stale
+            self._hardware_fault(time_s)
+            goal = None
         plan = self._plan
         if goal is not None and goal.cancel_requested and plan is not None and not plan.stopping:
             plan = self._plan = Plan.stop(self._state(), time_s - period_s, period_s,  # from last cycle's
@@ -359,6 +366,13 @@ class TrajectoryExecutor(Controller):
         self._write()
         if goal is not None and time_s + 1e-9 >= self._supervise_at:
             self._supervise(time_s, goal, plan)
+
+    def _hardware_fault(self, time_s: float) -> None:
+        """The hardware cannot be commanded (its ``fault``): goals end ABORTED saying why, and the
+        references hold the measured position, so nothing jumps when it comes back."""
+        self.goals.abort_all(f"the hardware cannot be commanded: {self.hardware.fault}", time_s)
+        self._plan = None
+        self._ref = interleave(self._of_joints(self.hardware.position), self._zeros, self._zeros)
 
     def _write(self) -> None:
         """The references in hand into the position controllers' reference interfaces. They come
