@@ -13,6 +13,8 @@ from jointctl.control.registry import controller_types
 from jointctl.paths import robots_dir
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import scenario_for_robot
+from jointctl.model import load_robot_model
+from tests.servoed_hardware import ServoedHardware
 
 ROBOTS = ("one_dof", "arm7dof", "minimal_robot")
 #: Types meant for any robot: each must run on the 1-DOF robot and on the arm.
@@ -39,9 +41,22 @@ def types_used(robot: str) -> set[type]:
     return used
 
 
+#: Controller files for hardware that servos its joints (position interfaces only): run on a double of it.
+SERVOED = ("industrial",)
+
+
+def session_of(robot: str, key: str) -> Session:
+    scenario = scenario_for_robot(robot, key)
+    if key not in SERVOED:
+        return Session(scenario)
+    joints = [j.name for j in load_robot_model(scenario.robot.description).movable_joints]
+    start = [scenario.initial_positions.get(j, 0.0) for j in joints]
+    return Session(scenario, hardware=ServoedHardware(joints, start))
+
+
 @pytest.mark.parametrize(("robot", "key"), CASES, ids=[f"{r}-{k}" for r, k in CASES])
 def test_every_controller_of_every_robot_file_starts_updates_and_stops(robot, key):
-    with Session(scenario_for_robot(robot, key)) as session:
+    with session_of(robot, key) as session:
         manager = session.manager
         names = [c.name for c in manager.active]
         assert names, "the file starts no controller"

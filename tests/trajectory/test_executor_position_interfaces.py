@@ -11,10 +11,11 @@ import yaml
 
 from jointctl.control import ControllerManager
 from jointctl.errors import ConfigError
-from jointctl.hardware.interface import POSITION, HardwareInterface
+from jointctl.hardware.interface import POSITION
 from jointctl.model import load_robot_model
 from jointctl.paths import robots_dir
 from jointctl.runtime.loop import ControlLoop
+from tests.servoed_hardware import ServoedHardware
 from jointctl.trajectory.errors import InvalidTrajectory
 from jointctl.trajectory.executor import GoalStatus
 from jointctl.trajectory.messages import JointTrajectory, JointTrajectoryPoint
@@ -23,26 +24,8 @@ TRAJ = "arm7dof_trajectory_controller"
 JOINTS = tuple(f"joint{k}" for k in range(7))
 
 
-class ServoedHardware(HardwareInterface):
-    """A robot that follows its position commands exactly, one period late (a servo drive)."""
-
-    def __init__(self, interfaces=frozenset({POSITION})) -> None:
-        super().__init__(JOINTS)
-        self.interfaces = frozenset(interfaces)
-        self.sent: list[list[float]] = []
-
-    def command_interfaces(self, joint: str) -> frozenset[str]:
-        return self.interfaces
-
-    def read(self) -> None:
-        pass
-
-    def write(self) -> None:
-        self.sent.append(list(self.command_buffer(POSITION)))
-
-    def advance(self, period_s: float) -> None:
-        if self.sent:
-            self.position[:] = self.sent[-1]
+def servoed(start: float | None = None, **kwargs) -> ServoedHardware:
+    return ServoedHardware(JOINTS, None if start is None else [start] * 7, **kwargs)
 
 
 @pytest.fixture
@@ -72,8 +55,7 @@ def goal(q_end: list[float], t_s: float) -> JointTrajectory:
 
 
 def test_it_claims_and_writes_the_position_interfaces(arm, write_yaml) -> None:
-    hw = ServoedHardware()
-    hw.position[:] = [0.1] * 7
+    hw = servoed(0.1)
     manager = manager_of(hw, arm, write_yaml)
     executor = manager.load(TRAJ)
     assert executor.claimed_interfaces() == tuple((j, POSITION) for j in JOINTS)
@@ -95,7 +77,7 @@ def test_it_claims_and_writes_the_position_interfaces(arm, write_yaml) -> None:
 
 
 def test_a_joint_without_a_position_interface_is_refused_naming_it(arm, write_yaml) -> None:
-    manager = manager_of(ServoedHardware(interfaces={"effort"}), arm, write_yaml)
+    manager = manager_of(servoed(interfaces={"effort"}), arm, write_yaml)
     with pytest.raises(ConfigError, match="no position command interface") as info:
         manager.load(TRAJ)
     assert info.value.field == f"arm7dof.{TRAJ}.joints[0]"
@@ -103,8 +85,7 @@ def test_a_joint_without_a_position_interface_is_refused_naming_it(arm, write_ya
 
 
 def test_a_failing_executor_leaves_the_joints_holding_their_measured_position(arm, write_yaml) -> None:
-    hw = ServoedHardware()
-    hw.position[:] = [0.2] * 7
+    hw = servoed(0.2)
     manager = manager_of(hw, arm, write_yaml)
     executor = manager.load(TRAJ)
     manager.start([TRAJ])
@@ -121,8 +102,7 @@ def test_a_failing_executor_leaves_the_joints_holding_their_measured_position(ar
 
 
 def test_a_hardware_fault_aborts_the_goal_refuses_new_ones_and_holds(arm, write_yaml) -> None:
-    hw = ServoedHardware()
-    hw.position[:] = [0.2] * 7
+    hw = servoed(0.2)
     manager = manager_of(hw, arm, write_yaml)
     executor = manager.load(TRAJ)
     manager.start([TRAJ])

@@ -1,5 +1,8 @@
 """Assemble a scenario into a running stack: model -> world -> hardware -> controllers -> loop.
 
+The hardware is a MuJoCo simulation of the scenario's robot, unless another hardware (a real
+robot's, e.g. :class:`~jointctl.hardware.industrial.IndustrialHardware`) is given.
+
 A :class:`Session` owns every part of one run and wires the edges to the loop:
 each command source feeds its controller at the start of a cycle, and the
 recorder, when an output folder is given, observes the end of each cycle.
@@ -21,7 +24,7 @@ from jointctl.runtime.clock import SimulatedClock, WallClockPacer
 from jointctl.runtime.loop import ControlLoop
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.mjcf_builder import WorldSettings
-from jointctl.hardware.interface import SimulationDoor
+from jointctl.hardware.interface import HardwareInterface, SimulationDoor
 from jointctl.sim.world import MujocoWorld
 from jointctl.tools.command_sources import CommandSource, command_source_from_config
 from jointctl.tools.recorder import TraceRecorder
@@ -44,17 +47,25 @@ class Session:
         realtime: bool = False,
         speed: float = 1.0,
         package_path: tuple[str, ...] = (),
+        hardware: HardwareInterface | None = None,
     ) -> None:
         self.scenario = scenario
         self.robot: RobotModel = load_robot_model(scenario.robot.description, search_path=package_path)
-        settings = WorldSettings(scenario.timestep_s, scenario.gravity_m_s2, scenario.floor)
-        self.world = MujocoWorld(self.robot, settings, initial_positions=scenario.initial_positions,
-                                 source=scenario.source)
+        #: The simulated world (None when the session drives given ``hardware``, e.g. a real robot).
+        self.world: MujocoWorld | None = None
+        if hardware is None:
+            settings = WorldSettings(scenario.timestep_s, scenario.gravity_m_s2, scenario.floor)
+            self.world = MujocoWorld(self.robot, settings, initial_positions=scenario.initial_positions,
+                                     source=scenario.source)
+            hardware = MujocoHardware(self.world)
+        elif scenario.objects:
+            raise ConfigError("objects need a simulated robot; this hardware has no simulation door",
+                              source=scenario.source, field="objects", value=[o.name for o in scenario.objects])
         for k, obj in enumerate(scenario.objects):
             if self.world.has_body(obj.name):
                 raise ConfigError("a link of the robot already has that name", source=scenario.source,
                                   field=f"objects[{k}].name", value=obj.name)
-        self.hardware = MujocoHardware(self.world)
+        self.hardware = hardware
         self.manager = ControllerManager(self.hardware, self.robot, scenario.gravity_m_s2)
         self.manager.load_file(scenario.controller_file, scenario.controller_overrides)
         # Command sources are checked before any controller starts: nothing moves on bad input.
