@@ -102,6 +102,14 @@ class PhysicsError(JointCtlError):
     code = "physics"
 
 
+class MalformedPacket(JointCtlError):
+    """A ROS-Industrial ``simple_message`` packet is malformed (length prefix, header or body) or a
+    message cannot be encoded; ``field`` names the part (``"length"``, ``"msg_type"``,
+    ``"positions"``...)."""
+
+    code = "packet"
+
+
 def _short_repr(value: Any, limit: int = 80) -> str:
     text = repr(value)
     if len(text) > limit:
