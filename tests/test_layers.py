@@ -13,6 +13,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "jointctl"
 LAYERS = ("model", "sim", "hardware", "control", "trajectory", "runtime")
 #: Shared helpers below every layer.
 FOUNDATION = ("errors", "validate", "paths")
+#: Wire formats: pure codecs (no I/O, nothing of jointctl but the foundation) that hardware may speak.
+WIRE_FORMATS = ("jointctl.industrial.simple_message",)
 SIMULATOR_FREE = ("control", "trajectory", "runtime")
 
 
@@ -41,7 +43,15 @@ def test_a_layer_imports_only_the_layers_below_it(layer):
     allowed = set(LAYERS[: LAYERS.index(layer) + 1]) | set(FOUNDATION)
     wrong = {f"{path.relative_to(PACKAGE)} imports {module}"
              for path in modules_in(layer) for module in imports(path)
-             if package_of(module) is not None and package_of(module) not in allowed}
+             if package_of(module) is not None and package_of(module) not in allowed
+             and module not in WIRE_FORMATS}
+    assert not wrong, sorted(wrong)
+
+
+@pytest.mark.parametrize("module", WIRE_FORMATS)
+def test_wire_formats_import_only_the_foundation(module):
+    path = PACKAGE.parent / (module.replace(".", "/") + ".py")
+    wrong = {m for m in imports(path) if package_of(m) is not None and package_of(m) not in FOUNDATION}
     assert not wrong, sorted(wrong)
 
 
