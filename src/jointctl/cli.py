@@ -50,6 +50,15 @@ def _parser() -> argparse.ArgumentParser:
     serve = sub.add_parser("serve", help="run a robot or a scenario as a ROS 1 node (chapter topic names)")
     _live_target_arguments(serve)
     serve.add_argument("--sim-time", action="store_true", help="publish /clock with loop time, use_sim_time")
+    serve.add_argument("--hardware", choices=("sim", "industrial"), default="sim",
+                       help="sim: the robot in MuJoCo (default); industrial: a robot controller that interpolates "
+                            "by itself, over simple_message (with --robot-ip; controllers default to 'industrial')")
+    serve.add_argument("--robot-ip", help="with --hardware industrial: the robot controller's host name or IPv4 address")
+    serve.add_argument("--motion-port", type=int, default=11000, help="the controller's motion port (default 11000)")
+    serve.add_argument("--state-port", type=int, default=11002, help="the controller's state port (default 11002)")
+    serve.add_argument("--big-endian", action="store_true", help="the controller speaks big-endian (the _bswap drivers)")
+    serve.add_argument("--stream-rate-hz", type=float, default=50.0,
+                       help="points streamed to the controller per second (default 50)")
 
     demo = sub.add_parser("demo", help="run every built-in experiment and write report.md")
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder")
@@ -91,7 +100,7 @@ def _parser() -> argparse.ArgumentParser:
 def _live_target_arguments(parser: argparse.ArgumentParser) -> None:
     """What serve and tune share: a robot and its controller file, or a scenario, run on the wall clock."""
     parser.add_argument("target", help="a built-in robot (with --controllers) or a scenario YAML / name")
-    parser.add_argument("--controllers", default="position",
+    parser.add_argument("--controllers", default=None,
                         help="with a robot: which of its controller files to load and start (default position)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario field (repeatable)")
@@ -105,7 +114,8 @@ def _live_scenario(args: argparse.Namespace):
     if not args.speed > 0:
         raise JointCtlError("must be positive", field="--speed", value=args.speed)
     if args.target in builtin_robots():
-        return scenario_for_robot(args.target, args.controllers, args.overrides)
+        default = "industrial" if getattr(args, "hardware", "sim") == "industrial" else "position"
+        return scenario_for_robot(args.target, args.controllers or default, args.overrides)
     return load_scenario(args.target, args.overrides)
 
 
@@ -160,14 +170,34 @@ def _serve(args: argparse.Namespace) -> int:
         raise JointCtlError(f"ROS 1 is not available ({exc}); install it with 'make ros'") from None
     ros_section = scenario.robot.extras.get("ros") or {}
     source = str(scenario.robot.folder)
-    session = Session(scenario)
+    hardware = _industrial_hardware(args, scenario) if args.hardware == "industrial" else None
+    session = Session(scenario, hardware=hardware)
     started = {c.name for c in session.manager.active}
     actions = {name: spec for name, spec in check_actions(ros_section.get("actions"), source).items()
                if spec["controller"] in started}
     topics = {topic: name for topic, name in check_command_topics(ros_section.get("command_topics"), source).items()
               if name in started}
-    serve(session, sim_time=args.sim_time, speed=args.speed, actions=actions, command_topics=topics)
+    try:
+        serve(session, sim_time=args.sim_time, speed=args.speed, actions=actions, command_topics=topics)
+    finally:
+        if hardware is not None:
+            hardware.close()
     return 0
+
+
+def _industrial_hardware(args: argparse.Namespace, scenario):
+    """The robot controller behind ``serve --hardware industrial``, connected (or a clear error)."""
+    from jointctl.hardware.industrial import IndustrialHardware
+    from jointctl.model.loader import load_robot_model
+
+    if not args.robot_ip:
+        raise JointCtlError("is required with --hardware industrial", field="--robot-ip")
+    robot = load_robot_model(scenario.robot.description)
+    hardware = IndustrialHardware([j.name for j in robot.movable_joints], robot_ip=args.robot_ip,
+                                  motion_port=args.motion_port, state_port=args.state_port,
+                                  big_endian=args.big_endian, stream_rate_hz=args.stream_rate_hz)
+    hardware.connect()
+    return hardware
 
 
 def _demo(args: argparse.Namespace) -> int:

@@ -15,7 +15,9 @@ Under the robot's namespace (``one_DOF_robot``, ``arm7dof``):
 - each force-torque sensor's topic from the URDF (``/ft_sensor_topic``) at its update rate;
 - a dynamic_reconfigure server per PID at ``<controller>/pid``: gains change while running,
   validated (finite, non-negative), applied at the next cycle;
-- ``loop_lateness`` once a second: the loop's jitter (p50, p99, max, ms).
+- ``loop_lateness`` once a second: the loop's jitter (p50, p99, max, ms);
+- on an industrial controller (``serve --hardware industrial``), ROS-Industrial's names as well
+  (see :mod:`jointctl.ros.industrial`).
 
 The controller YAML is loaded onto the parameter server as roslaunch's ``rosparam load`` would.
 The loop runs paced to the wall clock; with ``sim_time`` it publishes ``/clock`` (loop time) and
@@ -46,7 +48,9 @@ from jointctl.control.manager import read_yaml
 from jointctl.errors import ConfigError, InvalidCommand, JointCtlError
 from jointctl.ros.actions import TrajectoryActionServer, action_server
 from jointctl.ros.conversions import joint_state_to_ros, wrench_to_ros
+from jointctl.hardware.industrial import IndustrialHardware
 from jointctl.ros.gains import attach_gain_servers
+from jointctl.ros.industrial import IndustrialTopics
 from jointctl.ros.world_services import attach_world_services
 from jointctl.runtime.clock import WallClockPacer
 from jointctl.scenario.session import Session
@@ -147,6 +151,11 @@ class RosNode:
             lambda f: rospy.logerr("jointctl: controller %s %s", f.controller, f.error().message))
         #: Gazebo's /gazebo world services (spawn, delete, physics properties) and model_states.
         self.world_services = attach_world_services(self)
+        #: ROS-Industrial's names, when the hardware is an industrial controller (serve --hardware industrial).
+        self.industrial = None
+        executors = [c for c in manager.active if isinstance(c, TrajectoryExecutor)]
+        if isinstance(session.hardware, IndustrialHardware) and executors:
+            self.industrial = IndustrialTopics(session.hardware, executors[0], self.clock, session.loop)
 
     def _command_callback(self, controller):
         def on_command(msg: Float64) -> None:
