@@ -50,6 +50,9 @@ def _parser() -> argparse.ArgumentParser:
     serve = sub.add_parser("serve", help="run a robot or a scenario as a ROS 1 node (chapter topic names)")
     _live_target_arguments(serve)
     serve.add_argument("--sim-time", action="store_true", help="publish /clock with loop time, use_sim_time")
+    serve.add_argument("--rviz", action="store_true",
+                       help="also run robot_state_publisher and rviz (jointctl's config) when installed; what cannot "
+                            "start is said in one line and the node serves on")
     serve.add_argument("--hardware", choices=("sim", "industrial"), default="sim",
                        help="sim: the robot in MuJoCo (default); industrial: a robot controller that interpolates "
                             "by itself, over simple_message (with --robot-ip; controllers default to 'industrial')")
@@ -178,7 +181,8 @@ def _serve(args: argparse.Namespace) -> int:
     topics = {topic: name for topic, name in check_command_topics(ros_section.get("command_topics"), source).items()
               if name in started}
     try:
-        serve(session, sim_time=args.sim_time, speed=args.speed, actions=actions, command_topics=topics)
+        serve(session, sim_time=args.sim_time, speed=args.speed, actions=actions, command_topics=topics,
+              rviz=args.rviz)
     finally:
         if hardware is not None:
             hardware.close()

@@ -18,6 +18,9 @@ Under the robot's namespace (``one_DOF_robot``, ``arm7dof``):
 - ``loop_lateness`` once a second: the loop's jitter (p50, p99, max, ms);
 - on an industrial controller (``serve --hardware industrial``), ROS-Industrial's names as well
   (see :mod:`jointctl.ros.industrial`).
+- ``/robot_description`` (the URDF, xacro expanded) and the spawned objects' markers on
+  ``/jointctl/object_markers``; with ``serve --rviz``, robot_state_publisher (remapped onto
+  ``<ns>/joint_states``) and rviz (see :mod:`jointctl.ros.robot_description`).
 
 The controller YAML is loaded onto the parameter server as roslaunch's ``rosparam load`` would.
 The loop runs paced to the wall clock; with ``sim_time`` it publishes ``/clock`` (loop time) and
@@ -51,6 +54,7 @@ from jointctl.ros.conversions import joint_state_to_ros, wrench_to_ros
 from jointctl.hardware.industrial import IndustrialHardware
 from jointctl.ros.gains import attach_gain_servers
 from jointctl.ros.industrial import IndustrialTopics
+from jointctl.ros.robot_description import Viewers, attach_robot_description
 from jointctl.ros.world_services import attach_world_services
 from jointctl.runtime.clock import WallClockPacer
 from jointctl.scenario.session import Session
@@ -156,6 +160,9 @@ class RosNode:
         executors = [c for c in manager.active if isinstance(c, TrajectoryExecutor)]
         if isinstance(session.hardware, IndustrialHardware) and executors:
             self.industrial = IndustrialTopics(session.hardware, executors[0], self.clock, session.loop)
+        #: /robot_description (the expanded URDF) and the spawned objects' markers, for robot_state_publisher
+        #: and rviz (see jointctl.ros.robot_description).
+        self.description = attach_robot_description(self)
 
     def _command_callback(self, controller):
         def on_command(msg: Float64) -> None:
@@ -271,9 +278,13 @@ def _watch_master(loop, lost: list) -> None:
 
 def serve(session: Session, *, sim_time: bool = False, speed: float = 1.0,
           actions: Mapping[str, Mapping[str, str]] | None = None,
-          command_topics: Mapping[str, str] | None = None, node_name: str | None = None) -> None:
-    """Start (or join) a master, bring the session up as a node and run until stopped."""
+          command_topics: Mapping[str, str] | None = None, node_name: str | None = None,
+          rviz: bool = False) -> None:
+    """Start (or join) a master, bring the session up as a node and run until stopped. With ``rviz``,
+    robot_state_publisher and rviz run beside it while it serves (what cannot start is said in one
+    line on stderr; the node serves on)."""
     master = ensure_master()
+    viewers = Viewers()
     # The loop thread must get the GIL back quickly after each sleep, while rospy's threads work:
     # Python's default 5 ms switch interval would make cycles that late.
     sys.setswitchinterval(SWITCH_INTERVAL_S)
@@ -282,6 +293,8 @@ def serve(session: Session, *, sim_time: bool = False, speed: float = 1.0,
         rospy.init_node(name, anonymous=False, disable_signals=True)
         node = RosNode(session, sim_time=sim_time, actions=actions, command_topics=command_topics)
         rospy.loginfo("jointctl: %s up under /%s", session.robot.name, node.namespace)
+        if rviz:
+            print(viewers.start(node.description), file=sys.stderr, flush=True)
         lost: list[str] = []
         threading.Thread(target=_watch_master, args=(session.loop, lost), daemon=True,
                          name="jointctl-master-watchdog").start()
@@ -291,6 +304,7 @@ def serve(session: Session, *, sim_time: bool = False, speed: float = 1.0,
                                 "not re-register): restart jointctl serve", field="ROS_MASTER_URI",
                                 value=rosgraph.get_master_uri())
     finally:
+        viewers.stop()
         rospy.signal_shutdown("jointctl stopped")
         if master is not None:
             master.terminate()
