@@ -1,152 +1,244 @@
 """The trajectory generator of a simulated industrial controller: a queue of points, followed.
 
-An industrial controller interpolates by itself (chapter 11.5): the PC sends joint positions,
-each with the time its segment should take, and the controller moves there on its own clock.
-:class:`Interpolator` is that program's motion part, pure (no sockets, threads or simulator):
+An industrial controller interpolates by itself (chapter 11.5): the PC sends joint positions, each
+with the time its segment should take and a fraction of the maximum speed (ROS-Industrial's
+``JOINT_TRAJ_PT``), and the controller moves there on its own clock. :class:`Interpolator` is that
+program's motion part, pure (no sockets, threads or simulator). Joint values are in rad (revolute)
+or m (prismatic), velocities per second, decelerations per second², times in s; joint ``i`` is
+joint ``i`` of the limits given.
+
+Choices, as an industrial controller makes them:
 
 - **Segments are linear in joint space** (the book's example server and ROS-Industrial's
   industrial_robot_simulator interpolate so), from the reference where the previous segment ended
   (or where the reference rests when idle) to the point, over
   ``T = max(duration, max_i |Δq_i| / (v_frac·vmax_i) if v_frac > 0, max_i |Δq_i| / vmax_i)``:
   never faster than the point's speed fraction of the joint limits, never faster than the limits.
-  A fraction of 0 means "no fraction given" (ROS-I sends 0 when a point's velocities are zero,
-  its last point for one): only the limits apply. The velocity reference is ``Δq / T`` during a
-  segment and steps between segments; the joint controllers smooth it.
-- **Time is exact**: :meth:`step` crosses as many segment boundaries as its ``dt`` covers,
-  carrying the time left into the next segment, and evaluates positions from each segment's start
-  and elapsed time, so the last point is reached exactly and nothing drifts.
-- **Stop** decelerates every joint from its current velocity at its ``deceleration`` (a linear
-  ramp of velocity to zero; the joints need not end together), clamped within the joint's range,
-  and clears the queue.
-- **Refusals**: a point with the wrong joint count, a non-finite number, a position outside the
-  joint's range, a speed fraction outside [0, 1] or a negative duration is refused with
-  :class:`RefusedPoint` (an ``error_code`` for the controller's STATUS) before anything changes.
-
-Units: joint values in rad or m, velocities per second, durations in s.
+  All joints start and arrive together. A fraction of 0 means "no fraction given" (ROS-I sends 0
+  when a point's velocities are zero, its last point for one): only the limits apply. A point
+  where the reference already is, with a duration, is a dwell of that duration; with duration 0 it
+  completes at once. The velocity reference is ``Δq / T`` during a segment and steps between
+  segments (and to 0 at the last point, which is reached exactly): the joint servos smooth it.
+- **Time is exact**: :meth:`step` crosses as many segment boundaries as its ``dt`` covers, carrying
+  the time left into the next segment, and evaluates each position from its segment's start and
+  the time spent in it, so nothing drifts and the last point's positions are reached bit for bit.
+  A segment whose end is less than 1 ns away counts as ended (sums of ``dt`` round).
+- **Stop** (:meth:`stop`, ROS-I's ``STOP_TRAJECTORY``) clears the queue and ramps each joint's
+  velocity linearly from its current value to zero at the joint's ``deceleration`` (the joints need
+  not end together; the distance is ``v²/(2a)``, integrated exactly). Points pushed while stopping
+  wait until every joint is at rest, then motion resumes from the rest position.
+- **New trajectory** (:meth:`new_trajectory`, a sequence number back to 0) forgets the queue and
+  abandons the segment in progress; the reference keeps its position and velocity, and the next
+  point's segment starts from the reference at the step that takes it. If a step finds nothing to
+  move to while the reference still moves, the reference brakes as in a stop (never an instant
+  halt from speed), until a point arrives or it is at rest.
+- **Nothing leaves [lower, upper]**: points outside a joint's range are refused, braking is clamped
+  at the range's ends (a joint that reaches one stops there), and positions are clamped against
+  rounding. simple_message carries float32, so a point beyond a limit by no more than float32
+  rounding (``|limit|·2⁻²³``) is accepted and queued at the limit itself; a start position outside
+  the range is clamped into it.
+- **Refusals**: a point with the wrong joint count, a non-finite number (positions, velocity or
+  duration: :data:`ERROR_NOT_FINITE`), a position outside the joint's range, a speed fraction
+  outside [0, 1] or a negative duration is refused with :class:`RefusedPoint`, which names the
+  field and the value and carries the ``error_code`` for the controller's STATUS, before anything
+  changes. A full queue raises :class:`QueueFull` (flow control: reply to the sender later).
+- **Cost**: :meth:`step` uses plain floats and lists (a few list comprehensions over the joints).
+  It returns fresh lists, which the caller may keep or change.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 from jointctl.errors import JointCtlError
 
+#: ``error_code`` values of :class:`RefusedPoint`, reported in the controller's STATUS.
 ERROR_POSITION_LIMIT = 1
 ERROR_NOT_FINITE = 2
 ERROR_BAD_VELOCITY = 3
 ERROR_BAD_DURATION = 4
 ERROR_JOINT_COUNT = 5
 
+#: A segment (or a joint's braking) whose end is nearer than this [s] is finished in the current step.
+TIME_EPS_S = 1e-9
+#: Relative tolerance on joint limits for positions that went through float32 (one float32 ulp).
+FLOAT32_REL_TOL = 2.0**-23
+
 
 class RefusedPoint(JointCtlError):
-    """A point the controller will not move to; ``error_code`` is what STATUS reports."""
+    """A point the controller will not move to. ``field`` is ``"positions"`` (joint count),
+    ``"positions[i]"``, ``"velocity"`` or ``"duration"``; ``value`` the offending value;
+    ``error_code`` one of the ``ERROR_*`` codes, for the controller's STATUS."""
 
     code = "refused_point"
 
-    def __init__(self, message: str, *, error_code: int, field: str, value) -> None:
-        super().__init__(message, source="industrial controller", field=field, value=value)
+    def __init__(self, message: str, *, error_code: int, field: str, value: object) -> None:
+        super().__init__(message, field=field, value=value)
         self.error_code = error_code
 
 
 class QueueFull(JointCtlError):
-    """The controller's point queue is full: the sender must wait (flow control)."""
+    """The point queue is at capacity: the sender must wait (the controller holds back its reply)."""
 
     code = "queue_full"
 
 
 @dataclass(frozen=True)
 class JointLimits:
-    """One joint's range [rad or m] (±inf when none), velocity limit [/s] and stopping
-    deceleration [/s²]."""
+    """One joint's limits for the controller.
+
+    ``lower``/``upper``: range [rad or m], ``-inf``/``+inf`` when the joint has none.
+    ``velocity``: maximum speed [rad/s or m/s], > 0, ``inf`` when unknown.
+    ``deceleration``: [rad/s² or m/s²], > 0, used to stop; ``inf`` stops at once.
+    """
 
     lower: float
     upper: float
     velocity: float
     deceleration: float
 
+    def __post_init__(self) -> None:
+        if math.isnan(self.lower) or math.isnan(self.upper) or self.lower > self.upper:
+            raise JointCtlError(f"the range must be numbers with lower <= upper (upper is {self.upper!r})",
+                                field="lower", value=self.lower)
+        if not self.velocity > 0:
+            raise JointCtlError("must be positive [rad/s or m/s] (inf if unknown)", field="velocity",
+                                value=self.velocity)
+        if not self.deceleration > 0:
+            raise JointCtlError("must be positive [rad/s² or m/s²]", field="deceleration",
+                                value=self.deceleration)
+
     @classmethod
-    def from_model(cls, robot, joint_names: Sequence[str], *, stop_time_s: float = 0.2) -> tuple[JointLimits, ...]:
-        """Limits of ``joint_names`` from the robot model; a joint at full speed stops within
-        ``stop_time_s`` (joints without a velocity limit: 1 /s, stopping at 5 /s²)."""
+    def from_model(cls, robot, joint_names: Sequence[str], *,
+                   stop_time_s: float = 0.2) -> tuple[JointLimits, ...]:
+        """The limits of ``joint_names`` (in that order) from a :class:`jointctl.model.RobotModel`.
+
+        Range and velocity are the URDF's ``<limit>``: continuous joints have no range (±inf), a
+        joint without a ``<limit>`` or with velocity 0 has an unknown velocity (inf). The
+        deceleration is ``velocity / stop_time_s`` [s]: a joint at full speed stops within
+        ``stop_time_s`` (at once when its velocity is unknown).
+        """
+        if not (isinstance(stop_time_s, numbers.Real) and 0 < stop_time_s < math.inf):
+            raise JointCtlError("must be a positive number of seconds", field="stop_time_s", value=stop_time_s)
         out = []
-        for name in joint_names:
-            limits = robot.joint(name).limits
-            lower = limits.lower if limits is not None and limits.lower is not None else -math.inf
-            upper = limits.upper if limits is not None and limits.upper is not None else math.inf
-            if robot.joint(name).type == "continuous":
+        for i, name in enumerate(joint_names):
+            if not robot.has_joint(name):
+                raise JointCtlError(f"no such joint in robot {robot.name!r}", field=f"joint_names[{i}]",
+                                    value=name)
+            joint = robot.joint(name)
+            if not joint.is_movable:
+                raise JointCtlError(f"is a {joint.type} joint that does not move", field=f"joint_names[{i}]",
+                                    value=name)
+            lim = joint.limits
+            lower = lim.lower if lim is not None and lim.lower is not None else -math.inf
+            upper = lim.upper if lim is not None and lim.upper is not None else math.inf
+            if joint.type == "continuous":
                 lower, upper = -math.inf, math.inf
-            velocity = limits.velocity if limits is not None and limits.velocity and limits.velocity > 0 else 1.0
-            out.append(cls(lower, upper, velocity, velocity / stop_time_s))
+            velocity = lim.velocity if lim is not None and lim.velocity > 0 else math.inf
+            out.append(cls(float(lower), float(upper), float(velocity), velocity / stop_time_s))
         return tuple(out)
 
 
 @dataclass(frozen=True)
 class Point:
-    """A trajectory point: ``positions`` [rad or m] per joint, ``velocity`` a fraction of each
-    joint's maximum speed in [0, 1] (0: none given), ``duration`` [s] of the segment ending here."""
+    """A trajectory point: ``positions`` [rad or m], one per joint; ``velocity`` a fraction of each
+    joint's maximum speed in [0, 1] (0: none given, only the limits apply); ``duration`` [s] of the
+    segment that ends at this point, >= 0."""
 
     positions: tuple[float, ...]
     velocity: float
     duration: float
 
 
+def _is_number(x: object) -> bool:
+    return isinstance(x, numbers.Real) and not isinstance(x, bool)
+
+
 class Interpolator:
-    """The controller's trajectory generator (see the module docstring)."""
+    """The controller's trajectory generator: a queue of points, followed from where the robot's
+    reference is (see the module docstring for the choices).
+
+    ``limits``: one :class:`JointLimits` per joint. ``start``: the reference's initial positions
+    [rad or m] (clamped into the ranges). ``capacity``: how many points the queue holds (the segment
+    in progress not counted).
+    """
 
     def __init__(self, limits: Sequence[JointLimits], start: Sequence[float], *, capacity: int = 32) -> None:
-        if len(start) != len(limits):
-            raise ValueError("one start position per joint")
-        if capacity < 1:
-            raise ValueError("capacity must be at least 1")
         self.limits = tuple(limits)
+        if not self.limits or not all(isinstance(lim, JointLimits) for lim in self.limits):
+            raise JointCtlError("needs one JointLimits per joint, at least one", field="limits", value=limits)
+        if len(start) != len(self.limits):
+            raise JointCtlError(f"needs {len(self.limits)} positions, one per joint", field="start",
+                                value=list(start))
+        for i, q in enumerate(start):
+            if not (_is_number(q) and math.isfinite(q)):
+                raise JointCtlError("must be a finite number [rad or m]", field=f"start[{i}]", value=q)
+        if not (isinstance(capacity, int) and not isinstance(capacity, bool) and capacity >= 1):
+            raise JointCtlError("must be a whole number of points, at least 1", field="capacity", value=capacity)
         self.capacity = capacity
+        self._lower = [lim.lower for lim in self.limits]
+        self._upper = [lim.upper for lim in self.limits]
+        self._vmax = [lim.velocity for lim in self.limits]
+        self._decel = [lim.deceleration for lim in self.limits]
+        self._zeros = [0.0] * len(self.limits)
+        self._q = [min(max(float(q), lo), hi) for q, lo, hi in zip(start, self._lower, self._upper)]
+        self._v = list(self._zeros)
         self._queue: deque[Point] = deque()
-        self.position = [float(q) for q in start]
-        self.velocity = [0.0] * len(self.limits)
-        # The segment in progress: its start, its change, its length and the time spent in it.
-        self._segment: tuple[list[float], list[float], float] | None = None
-        self._elapsed = 0.0
-        self._stopping = False
+        # The segment in progress: start, change, end positions, velocity, length T [s], time spent [s].
+        self._seg: tuple[list[float], list[float], list[float], list[float], float] | None = None
+        self._seg_t = 0.0
+        self._stopping = False  # a stop(): brake to rest, queued points wait
+        self._braking = False  # a segment abandoned by new_trajectory(): brake until a point comes
 
     # -- points ------------------------------------------------------------------------------------
     def check(self, point: Point) -> None:
         """Raise :class:`RefusedPoint` if ``point`` cannot be executed; changes nothing."""
         positions = point.positions
-        if len(positions) != len(self.limits):
+        try:
+            count = len(positions)
+        except TypeError:
+            count = None
+        if count != len(self.limits):
             raise RefusedPoint(f"needs {len(self.limits)} joint positions", error_code=ERROR_JOINT_COUNT,
-                               field="positions", value=len(positions))
-        for i, (q, lim) in enumerate(zip(positions, self.limits)):
-            if not isinstance(q, (int, float)) or not math.isfinite(q):
-                raise RefusedPoint("must be a finite number", error_code=ERROR_NOT_FINITE,
+                               field="positions", value=count)
+        for i, q in enumerate(positions):
+            if not (_is_number(q) and math.isfinite(q)):
+                raise RefusedPoint("must be a finite number [rad or m]", error_code=ERROR_NOT_FINITE,
                                    field=f"positions[{i}]", value=q)
-            if not lim.lower <= q <= lim.upper:
-                raise RefusedPoint(f"outside the joint's range [{lim.lower:g}, {lim.upper:g}]",
-                                   error_code=ERROR_POSITION_LIMIT, field=f"positions[{i}]", value=q)
+            lo, hi = self._lower[i], self._upper[i]
+            if q < lo - abs(lo) * FLOAT32_REL_TOL or q > hi + abs(hi) * FLOAT32_REL_TOL:
+                raise RefusedPoint(f"outside the joint's range [{lo:g}, {hi:g}]", error_code=ERROR_POSITION_LIMIT,
+                                   field=f"positions[{i}]", value=q)
         v = point.velocity
-        if not isinstance(v, (int, float)) or not math.isfinite(v):
+        if not (_is_number(v) and math.isfinite(v)):
             raise RefusedPoint("must be a finite number", error_code=ERROR_NOT_FINITE, field="velocity", value=v)
         if not 0.0 <= v <= 1.0:
             raise RefusedPoint("must be a fraction of the maximum speed in [0, 1]", error_code=ERROR_BAD_VELOCITY,
                                field="velocity", value=v)
         d = point.duration
-        if not isinstance(d, (int, float)) or not math.isfinite(d):
-            raise RefusedPoint("must be a finite number", error_code=ERROR_NOT_FINITE, field="duration", value=d)
+        if not (_is_number(d) and math.isfinite(d)):
+            raise RefusedPoint("must be a finite number [s]", error_code=ERROR_NOT_FINITE, field="duration", value=d)
         if d < 0:
-            raise RefusedPoint("must not be negative", error_code=ERROR_BAD_DURATION, field="duration", value=d)
+            raise RefusedPoint("must not be negative [s]", error_code=ERROR_BAD_DURATION, field="duration", value=d)
 
     def push(self, point: Point) -> None:
-        """Check ``point`` and queue it (:class:`RefusedPoint`, or :class:`QueueFull` at capacity)."""
+        """Check ``point`` (:class:`RefusedPoint`) and queue it (:class:`QueueFull` at capacity).
+
+        Positions within float32 rounding beyond a limit are queued at the limit."""
         self.check(point)
         if self.full:
-            raise QueueFull(f"the queue holds {self.capacity} points", field="queue", value=len(self._queue))
-        self._queue.append(Point(tuple(float(q) for q in point.positions), float(point.velocity),
-                                 float(point.duration)))
+            raise QueueFull(f"the queue holds {self.capacity} points; wait for the robot to take one",
+                            field="queue", value=len(self._queue))
+        positions = tuple(min(max(float(q), lo), hi) for q, lo, hi in zip(point.positions, self._lower, self._upper))
+        self._queue.append(Point(positions, float(point.velocity), float(point.duration)))
 
     @property
     def full(self) -> bool:
+        """True when :meth:`push` would raise :class:`QueueFull`."""
         return len(self._queue) >= self.capacity
 
     def __len__(self) -> int:
@@ -154,80 +246,124 @@ class Interpolator:
         return len(self._queue)
 
     def new_trajectory(self) -> None:
-        """Forget the queued points and the segment in progress: the next point starts from the
-        current reference."""
+        """Forget the queued points and abandon the segment in progress. The reference keeps its
+        position and velocity; the next point starts from it. With no point to go to, a moving
+        reference brakes at each joint's deceleration (as in :meth:`stop`)."""
         self._queue.clear()
-        self._segment = None
-        self._elapsed = 0.0
+        if self._seg is not None:
+            self._seg = None
+            self._seg_t = 0.0
+            self._braking = not self._stopping and any(v != 0.0 for v in self._v)
 
     def stop(self) -> None:
-        """Decelerate to rest within each joint's deceleration and clear the queue."""
-        self.new_trajectory()
-        self._stopping = any(v != 0.0 for v in self.velocity)
+        """Clear the queue and decelerate every joint from its current velocity to rest at its
+        ``deceleration``, inside its range. :attr:`in_motion` stays True until at rest; points pushed
+        meanwhile start from the rest position."""
+        self._queue.clear()
+        self._seg = None
+        self._seg_t = 0.0
+        self._braking = False
+        self._stopping = any(v != 0.0 for v in self._v)
 
     @property
     def in_motion(self) -> bool:
-        """True while a segment, a stop or queued points are in progress."""
-        return self._segment is not None or self._stopping or bool(self._queue)
+        """True while a segment or a stop is in progress or points are queued; False at rest with an
+        empty queue."""
+        return self._seg is not None or self._stopping or self._braking or bool(self._queue)
+
+    @property
+    def position(self) -> list[float]:
+        """The current position references [rad or m] (a copy)."""
+        return list(self._q)
+
+    @property
+    def velocity(self) -> list[float]:
+        """The current velocity references [rad/s or m/s] (a copy)."""
+        return list(self._v)
 
     # -- time --------------------------------------------------------------------------------------
     def step(self, dt: float) -> tuple[list[float], list[float]]:
-        """Advance ``dt`` seconds; the (positions, velocities) references per joint."""
-        if self._stopping:
-            self._brake(dt)
-            return self.position, self.velocity
+        """Advance ``dt`` [s] (>= 0, finite); return the (positions, velocities) references per joint."""
+        if not 0.0 <= dt < math.inf:
+            raise JointCtlError("must be a finite time step >= 0 [s]", field="dt", value=dt)
         left = dt
         while True:
-            if self._segment is None:
+            if self._stopping or self._braking:
+                if self._braking and self._queue:
+                    self._braking = False  # a point came: its segment starts from here
+                    continue
+                left = self._brake(left)
+                if left is None:  # still braking
+                    return list(self._q), list(self._v)
+                self._stopping = self._braking = False
+            seg = self._seg
+            if seg is None:
                 if not self._queue:
-                    self.velocity = [0.0] * len(self.limits)
-                    return self.position, self.velocity
+                    self._v = list(self._zeros)
+                    return list(self._q), list(self._v)
                 self._begin(self._queue.popleft())
-            start, change, length = self._segment
-            if self._elapsed + left < length:
-                self._elapsed += left
-                s = self._elapsed / length
-                self.position = [a + s * d for a, d in zip(start, change)]
-                self.velocity = [d / length for d in change]
-                return self.position, self.velocity
-            left -= length - self._elapsed  # the segment ends within this step
-            self.position = [a + d for a, d in zip(start, change)]
-            self._segment, self._elapsed = None, 0.0
-            if not self._queue:
-                self.velocity = [0.0] * len(self.limits)
-                return self.position, self.velocity
+                continue
+            start, change, end, vel, length = seg
+            remaining = length - self._seg_t
+            if left < remaining - TIME_EPS_S:
+                self._seg_t += left
+                s = self._seg_t / length
+                self._q = [min(max(a + s * d, lo), hi)
+                           for a, d, lo, hi in zip(start, change, self._lower, self._upper)]
+                self._v = list(vel)
+                return list(self._q), list(self._v)
+            # The segment ends within this step: its point exactly, and the rest of dt goes on.
+            left = max(left - remaining, 0.0)
+            self._q = list(end)
+            self._seg = None
+            self._seg_t = 0.0
+            self._v = list(self._zeros)
 
     def _begin(self, point: Point) -> None:
-        start = list(self.position)
-        change = [q - a for q, a in zip(point.positions, start)]
+        """Start the segment from the reference to ``point`` (or complete it at once if it takes no time)."""
+        start = self._q
+        end = list(point.positions)
+        change = [q - a for q, a in zip(end, start)]
         length = point.duration
-        for d, lim in zip(change, self.limits):
-            length = max(length, abs(d) / lim.velocity)
-            if point.velocity > 0:
-                length = max(length, abs(d) / (point.velocity * lim.velocity))
-        if length <= 0.0:  # no motion and no time: done at once
-            self.position = [float(q) for q in point.positions]
+        frac = point.velocity
+        for d, vmax in zip(change, self._vmax):
+            if d != 0.0:
+                length = max(length, abs(d) / vmax, abs(d) / (frac * vmax) if frac > 0.0 else 0.0)
+        if length <= 0.0:  # nothing to move and no time to take (or no velocity limit): there at once
+            self._q = end
             return
-        self._segment, self._elapsed = (start, change, length), 0.0
+        self._seg = (list(start), change, end, [d / length for d in change], length)
+        self._seg_t = 0.0
 
-    def _brake(self, dt: float) -> None:
+    def _brake(self, dt: float) -> float | None:
+        """Decelerate every moving joint for up to ``dt``; the time left once all are at rest, else None."""
+        q, v = list(self._q), list(self._v)
+        rest_after = 0.0  # time [s] into dt at which the last joint came to rest
         moving = False
-        for i, (v, lim) in enumerate(zip(self.velocity, self.limits)):
-            if v == 0.0:
+        for i, vi in enumerate(v):
+            if vi == 0.0:
                 continue
-            a = lim.deceleration
-            t = min(dt, abs(v) / a)  # time braking in this step
-            sign = 1.0 if v > 0 else -1.0
-            q = self.position[i] + v * t - 0.5 * sign * a * t * t
-            v_new = v - sign * a * t
-            if t < dt or abs(v_new) < 1e-12:
-                v_new = 0.0
-            if q <= lim.lower or q >= lim.upper:
-                q, v_new = min(max(q, lim.lower), lim.upper), 0.0
-            self.position[i], self.velocity[i] = q, v_new
-            moving = moving or v_new != 0.0
-        self._stopping = moving
+            a = self._decel[i]
+            t_rest = abs(vi) / a
+            if t_rest <= dt + TIME_EPS_S:  # at rest within this step: the ramp's remaining area
+                dist, v_new, t = 0.5 * vi * t_rest, 0.0, min(t_rest, dt)
+            else:
+                v_new = vi - math.copysign(a * dt, vi)
+                dist, t = 0.5 * (vi + v_new) * dt, dt
+            qi = q[i] + dist
+            if qi >= self._upper[i]:
+                qi, v_new = self._upper[i], 0.0
+            elif qi <= self._lower[i]:
+                qi, v_new = self._lower[i], 0.0
+            q[i], v[i] = qi, v_new
+            if v_new != 0.0:
+                moving = True
+            else:
+                rest_after = max(rest_after, t)
+        self._q, self._v = q, v
+        return None if moving else max(dt - rest_after, 0.0)
 
 
 __all__ = ["ERROR_BAD_DURATION", "ERROR_BAD_VELOCITY", "ERROR_JOINT_COUNT", "ERROR_NOT_FINITE",
-           "ERROR_POSITION_LIMIT", "Interpolator", "JointLimits", "Point", "QueueFull", "RefusedPoint"]
+           "ERROR_POSITION_LIMIT", "FLOAT32_REL_TOL", "TIME_EPS_S", "Interpolator", "JointLimits", "Point",
+           "QueueFull", "RefusedPoint"]
