@@ -17,8 +17,10 @@ offers the same names, in the root namespace as ROS-I's launch files put them:
 - parameters ``robot_ip_address`` and ``controller_joint_names``.
 
 A stop (an empty ``joint_path_command``, ``stop_motion``) cancels the executor's goal and sends the
-controller STOP (-4): the controller decelerates to rest and clears its queue, and the executor's
-references restart from where the robot comes to rest.
+controller STOP (-4): the controller decelerates at its own limits and clears its queue. The
+executor's reference decelerates too (within its ``stop_deceleration``); what is streamed after the
+stop starts a new trajectory at the controller, from where the robot is. Not yet tested end to end
+against the simulated controller (the hardware's STOP packet is tested in tests/hardware).
 """
 
 from __future__ import annotations
