@@ -40,9 +40,11 @@ class Peer:
     """A controller double: state pushed every ``period_s`` from ``positions``; motion requests
     recorded and answered SUCCESS (or held while ``hold`` is set)."""
 
-    def __init__(self, big_endian: bool = False, period_s: float = 0.01) -> None:
+    def __init__(self, big_endian: bool = False, period_s: float = 0.01, positions=(0.1, -0.2),
+                 follow: bool = False) -> None:
         self.big_endian, self.period_s = big_endian, period_s
-        self.positions = [0.1, -0.2]
+        self.positions = list(positions)
+        self.follow = follow  # jump to each point received (an ideal servo)
         self.in_motion = 0
         self.points: list[JointTrajPt] = []
         self.hold = threading.Event()
@@ -91,7 +93,10 @@ class Peer:
                         break
                     for packet in reader.feed(data):
                         assert packet.comm_type == CommType.SERVICE_REQUEST
-                        self.points.append(decode(packet, big_endian=self.big_endian))
+                        point = decode(packet, big_endian=self.big_endian)
+                        self.points.append(point)
+                        if self.follow and point.sequence >= 0:
+                            self.positions = list(point.positions[: len(self.positions)])
                         while self.hold.is_set() and not self.closing.is_set():
                             time.sleep(0.005)
                         conn.sendall(encode_reply(packet, ReplyCode.SUCCESS, big_endian=self.big_endian))

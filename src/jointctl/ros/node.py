@@ -224,6 +224,8 @@ class RosNode:
     def _sensor_publishers(self) -> None:
         session = self.session
         for spec in session.robot.sensors:
+            if spec.name not in session.hardware.wrenches:
+                continue  # the model describes it, this hardware does not report it (an industrial controller)
             topic = spec.topic or f"{spec.name}_topic"
             pub = rospy.Publisher(topic, WrenchStamped, queue_size=10)
             every = max(1, round(1.0 / ((spec.update_rate_hz or 1000.0) * session.loop.period_s)))
