@@ -7,7 +7,8 @@ between, as the chapter's action servers stream to their position
 controllers). Without ``position_controllers`` it commands the joints'
 ``position`` command interfaces itself, as ros_control's
 ``position_controllers/JointTrajectoryController`` does: for hardware that
-servos its joints itself (an industrial controller), with no PID in front. Goals arrive through :meth:`TrajectoryExecutor.submit` from any
+servos its joints itself (an industrial controller), with no PID in front.
+Goals arrive through :meth:`TrajectoryExecutor.submit` from any
 thread and are validated at once (accepted or rejected, nothing moves on a
 rejection); the loop picks an accepted goal up at the start of its next cycle.
 
