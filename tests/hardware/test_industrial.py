@@ -145,6 +145,7 @@ def test_state_is_read_as_reported_and_the_command_starts_there(peer) -> None:
         assert hw.position == pytest.approx([0.1, -0.2], abs=1e-7)  # float32 on the wire
         assert hw.command_buffer(POSITION) == hw.position
         assert hw.fault is None
+        wait_for(lambda: hw.status is not None, "the first STATUS")  # it follows the first JOINT_POSITION
         assert hw.status.mode == 2 and hw.status.in_motion == 0
         peer.positions = [0.3, -0.2]
         wait_for(lambda: (hw.read(), hw.position[0])[1] == pytest.approx(0.3, abs=1e-7), "the new state")
