@@ -102,8 +102,6 @@ class IndustrialHardware(HardwareInterface):
         self._motion: socket.socket | None = None
         self._state: socket.socket | None = None
         self._motion_lost: str | None = None
-        self._idle = threading.Event()  # the sender has nothing in flight
-        self._idle.set()
         self._threads: list[threading.Thread] = []
         self.replies = 0  # points the controller acknowledged
 
@@ -215,7 +213,6 @@ class IndustrialHardware(HardwareInterface):
             item = self._outbox.get()
             if item is None or self._closing.is_set():
                 return
-            self._idle.clear()
             try:
                 self._request(item)
             except (OSError, ConnectionError, MalformedPacket) as exc:
@@ -229,9 +226,6 @@ class IndustrialHardware(HardwareInterface):
                 self._last_sent = None  # after a reconnect, the next motion starts a new trajectory
                 if not self._reconnect("motion"):
                     return
-            finally:
-                if self._outbox.empty():
-                    self._idle.set()
 
     def _request(self, point: JointTrajPt) -> None:
         """Send one point as a SERVICE_REQUEST and wait for the reply (the flow control)."""
