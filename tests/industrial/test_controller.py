@@ -1,0 +1,245 @@
+"""The simulated industrial controller on loopback: the robot in MuJoCo behind simple_message, driven
+by jointctl's own client (IndustrialHardware) and by raw packets, in both byte orders; faults on
+the sockets never stop it."""
+
+from __future__ import annotations
+
+import socket
+import struct
+import threading
+import time
+
+import pytest
+
+from jointctl.errors import ConfigError
+from jointctl.hardware.industrial import IndustrialHardware
+from jointctl.hardware.interface import POSITION
+from jointctl.industrial.controller import ControllerUnavailable, SimulatedController
+from jointctl.industrial.simple_message import (
+    END_TRAJECTORY,
+    START_TRAJECTORY_DOWNLOAD,
+    STOP_TRAJECTORY,
+    CommType,
+    JointPosition,
+    JointTrajPt,
+    MsgType,
+    PacketReader,
+    Ping,
+    ReplyCode,
+    RobotStatus,
+    decode,
+    encode,
+)
+from jointctl.scenario.spec import scenario_for_robot
+
+TIMEOUT_S = 20.0
+# The piston's servo: the chapter's P gain with a derivative for a damping ratio near 1
+# (m = 1.01 kg, b = 10 N·s/m: d = 2·sqrt(400·1.01) - 10 ≈ 30 N·s/m), and the model's gravity
+# feed-forward so that it holds where it starts.
+SERVO = ["controllers.joint1_position_controller.pid.d=30",
+         "controllers.joint1_position_controller.feedforward.gravity=true"]
+START_M = -0.5  # robot.yaml's serve default for one_dof
+
+
+def wait_for(condition, what: str, timeout_s: float = TIMEOUT_S) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.005)
+
+
+@pytest.fixture(params=[False, True], ids=["little-endian", "big-endian"])
+def controller(request):
+    ctl = SimulatedController(scenario_for_robot("one_dof", "position", SERVO), host="127.0.0.1",
+                              motion_port=0, state_port=0, big_endian=request.param)
+    thread = threading.Thread(target=ctl.run, daemon=True)
+    thread.start()
+    yield ctl
+    ctl.close()
+    thread.join(5.0)
+    assert not thread.is_alive()
+
+
+def joint1(ctl: SimulatedController) -> float:
+    return ctl.session.hardware.position[0]
+
+
+class RawClient:
+    """A motion-port client sending packets and reading replies."""
+
+    def __init__(self, ctl: SimulatedController, port: int | None = None) -> None:
+        self.big = ctl.big_endian
+        self.sock = socket.create_connection(("127.0.0.1", port or ctl.motion_port), timeout=TIMEOUT_S)
+        self.reader = PacketReader(big_endian=self.big)
+        self.pending = []
+
+    def send(self, message, comm=CommType.SERVICE_REQUEST) -> None:
+        self.sock.sendall(encode(message, comm, big_endian=self.big))
+
+    def request(self, message):
+        self.send(message)
+        return self.reply()
+
+    def reply(self):
+        while not self.pending:
+            data = self.sock.recv(4096)
+            assert data, "the controller closed the connection"
+            self.pending += self.reader.feed(data)
+        return self.pending.pop(0)
+
+    def closed_by_peer(self) -> bool:
+        try:
+            return self.sock.recv(4096) == b""
+        except ConnectionResetError:
+            return True
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def point(seq, q, duration=0.0, velocity=0.0) -> JointTrajPt:
+    return JointTrajPt(seq, (q,), velocity, duration)
+
+
+def test_state_reports_the_measured_position_and_a_truthful_status(controller) -> None:
+    sock = socket.create_connection(("127.0.0.1", controller.state_port), timeout=TIMEOUT_S)
+    reader = PacketReader(big_endian=controller.big_endian)
+    messages = []
+    while len([m for m in messages if isinstance(m, RobotStatus)]) < 3:
+        messages += [decode(p, big_endian=controller.big_endian) for p in reader.feed(sock.recv(4096))]
+    sock.close()
+    positions = [m for m in messages if isinstance(m, JointPosition)]
+    status = [m for m in messages if isinstance(m, RobotStatus)][-1]
+    assert positions[0].positions[0] == pytest.approx(START_M, abs=1e-3)
+    assert positions[0].positions[1:] == (0.0,) * 9  # padding
+    assert [p.sequence for p in positions[:3]] == [0, 1, 2]
+    assert (status.in_motion, status.in_error, status.drives_powered, status.motion_possible, status.mode) == \
+        (0, 0, 1, 1, 2)
+
+
+def test_jointctl_drives_it_through_the_streaming_handshake(controller) -> None:
+    hw = IndustrialHardware(["joint1"], robot_ip="127.0.0.1", motion_port=controller.motion_port,
+                            state_port=controller.state_port, big_endian=controller.big_endian)
+    hw.connect()
+    try:
+        assert hw.position[0] == pytest.approx(START_M, abs=1e-3)
+        seen_moving = False
+        for k in range(1500):  # 1.5 s of loop time: a ramp to -0.2 m over 1 s, then hold
+            hw.read()
+            hw.command_buffer(POSITION)[0] = START_M + 0.3 * min(k / 1000, 1.0)
+            hw.write()
+            hw.advance(0.001)
+            time.sleep(0.001)
+            seen_moving |= hw.status is not None and hw.status.in_motion == 1
+        wait_for(lambda: (hw.read(), hw.status.in_motion == 0)[1], "the robot at rest")
+        assert seen_moving
+        assert hw.position[0] == pytest.approx(-0.2, abs=2e-3)
+        assert joint1(controller) == pytest.approx(-0.2, abs=2e-3)
+        assert controller.program.accepted == hw.replies >= 40  # 50 Hz for ~1 s, each answered
+    finally:
+        hw.close()
+
+
+def test_the_download_handshake_runs_only_after_its_end(controller) -> None:
+    client = RawClient(controller)
+    for seq, q, d in ((START_TRAJECTORY_DOWNLOAD, START_M, 0.0), (1, -0.4, 0.5)):
+        client.send(point(seq, q, d), CommType.TOPIC)
+    time.sleep(0.3)
+    assert joint1(controller) == pytest.approx(START_M, abs=1e-3) and not controller.program.in_motion
+    client.send(point(END_TRAJECTORY, -0.3, 0.5), CommType.TOPIC)
+    wait_for(lambda: controller.program.in_motion, "the download to start")
+    wait_for(lambda: not controller.program.in_motion, "the download to end")
+    wait_for(lambda: abs(joint1(controller) + 0.3) < 2e-3, "the robot at -0.3 m")
+    client.close()
+
+
+def test_stop_is_answered_and_the_robot_comes_to_rest_short_of_the_point(controller) -> None:
+    client = RawClient(controller)
+    assert client.request(point(0, START_M)).reply_code == ReplyCode.SUCCESS
+    assert client.request(point(1, -0.05, 9.0)).reply_code == ReplyCode.SUCCESS  # 0.05 m/s for 9 s
+    wait_for(lambda: joint1(controller) > START_M + 0.05, "the robot moving")
+    reply = client.request(point(STOP_TRAJECTORY, 0.0))
+    assert (reply.msg_type, reply.reply_code) == (MsgType.JOINT_TRAJ_PT, ReplyCode.SUCCESS)
+    wait_for(lambda: not controller.program.in_motion, "the stop")
+    stopped_at = joint1(controller)
+    time.sleep(0.5)
+    assert joint1(controller) == pytest.approx(stopped_at, abs=2e-3) and stopped_at < -0.1
+    client.close()
+
+
+def test_ping_and_unknown_requests_are_answered(controller) -> None:
+    client = RawClient(controller)
+    assert client.request(Ping()).reply_code == ReplyCode.SUCCESS
+    reply = client.request(JointPosition(0, (0.0,)))
+    assert (reply.msg_type, reply.reply_code) == (MsgType.JOINT_POSITION, ReplyCode.FAILURE)
+    client.close()
+
+
+def test_a_refused_point_moves_nothing_and_shows_in_status(controller) -> None:
+    client = RawClient(controller)
+    client.request(point(0, START_M))
+    assert client.request(point(1, float("nan"), 1.0)).reply_code == ReplyCode.FAILURE
+    assert client.request(point(0, START_M)).reply_code == ReplyCode.SUCCESS  # delivered: a new trajectory
+    assert client.request(point(1, 5.0, 1.0)).reply_code == ReplyCode.FAILURE  # beyond the upper limit
+    time.sleep(0.3)
+    assert joint1(controller) == pytest.approx(START_M, abs=1e-3)
+    status = controller.program.status()
+    assert status.in_error == 1 and status.error_code == 1
+    client.close()
+
+
+@pytest.mark.parametrize("length, tail", [
+    (0, b"\x00" * 12),             # length 0
+    (11, b"\x01" * 11),            # length 11: shorter than the header
+    (1 << 30, b"\x0b" * 64),       # 1 GiB
+    (None, bytes(range(256)) * 4),  # noise: its first four bytes say 0x03020100 (or 0x00010203)
+])
+def test_garbage_closes_only_that_connection_and_the_next_client_is_served(controller, length, tail) -> None:
+    garbage = (b"" if length is None else struct.pack(">i" if controller.big_endian else "<i", length)) + tail
+    state = socket.create_connection(("127.0.0.1", controller.state_port), timeout=TIMEOUT_S)
+    client = RawClient(controller)
+    client.sock.sendall(garbage)
+    assert client.closed_by_peer()
+    client.close()
+    assert joint1(controller) == pytest.approx(START_M, abs=1e-3)
+    good = RawClient(controller)
+    assert good.request(Ping()).reply_code == ReplyCode.SUCCESS
+    good.close()
+    reports = controller.reports_sent
+    wait_for(lambda: controller.reports_sent > reports + 2, "state reports to go on")
+    assert state.recv(4096)  # the state client was never dropped
+    state.close()
+
+
+def test_a_client_lost_mid_trajectory_brakes_the_robot_and_can_come_back(controller) -> None:
+    client = RawClient(controller)
+    client.request(point(0, START_M))
+    client.request(point(1, -0.05, 9.0))
+    wait_for(lambda: joint1(controller) > START_M + 0.05, "the robot moving")
+    client.close()
+    wait_for(lambda: not controller.program.in_motion, "the robot braking to rest")
+    stopped_at = joint1(controller)
+    assert stopped_at < -0.1
+    again = RawClient(controller)
+    assert again.request(point(0, stopped_at)).reply_code == ReplyCode.SUCCESS
+    assert again.request(point(1, START_M, 0.5)).reply_code == ReplyCode.SUCCESS
+    wait_for(lambda: abs(joint1(controller) - START_M) < 2e-3, "the robot back at the start")
+    assert controller.motion_clients == 2
+    again.close()
+
+
+def test_a_port_in_use_is_a_clear_error() -> None:
+    taken = socket.create_server(("127.0.0.1", 0))
+    try:
+        with pytest.raises(ControllerUnavailable) as info:
+            SimulatedController(scenario_for_robot("one_dof", "position"), host="127.0.0.1",
+                                motion_port=taken.getsockname()[1], state_port=0)
+        assert info.value.field == "motion_port" and str(taken.getsockname()[1]) in str(info.value)
+    finally:
+        taken.close()
+
+
+def test_joints_without_position_servos_are_refused_naming_the_joint() -> None:
+    with pytest.raises(ConfigError) as info:
+        SimulatedController(scenario_for_robot("one_dof", "velocity"), motion_port=0, state_port=0)
+    assert info.value.field == "joint" and info.value.value == "joint1"
