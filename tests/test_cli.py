@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import os
+import socket
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -139,3 +141,29 @@ def test_tune_warns_when_listening_beyond_loopback(tmp_path):
         process.terminate()
         _, err = process.communicate(timeout=10)
     assert "warning: listening on 0.0.0.0: anyone who can reach it can change gains and move the robot" in err
+
+
+@pytest.mark.parametrize("args, fragments", [
+    (["--motion-port", "70000"], ["motion_port", "70000"]),
+    (["--state-rate-hz", "0"], ["state_rate_hz", "0"]),
+    (["--controllers", "velocity"], ["joint1", "JointPositionController"]),
+    (["--speed", "-1"], ["--speed"]),
+])
+def test_controller_refuses_bad_options_in_one_line(args, fragments):
+    assert_one_line_error(jointctl("controller", "one_dof", "--state-port", "0", *args), *fragments)
+
+
+def test_controller_says_where_it_listens_and_stops_cleanly_on_sigterm():
+    process = subprocess.Popen([*JOINTCTL, "controller", "one_dof", "--motion-port", "0", "--state-port", "0",
+                                "--big-endian"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = process.stdout.readline()
+        assert line.startswith("jointctl controller: one_dof (joints joint1) on 0.0.0.0, motion port ")
+        assert line.rstrip().endswith("big-endian")
+        state_port = int(line.split("state port ")[1].split(",")[0])
+        with socket.create_connection(("127.0.0.1", state_port), timeout=10) as state:
+            assert state.recv(4) == struct.pack(">i", 56)  # a JOINT_POSITION's length prefix, big-endian
+    finally:
+        process.terminate()
+        _, err = process.communicate(timeout=10)
+    assert process.returncode == 0, err

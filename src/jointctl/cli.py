@@ -10,6 +10,7 @@
     jointctl sine [--namespace NS] [--joint J]      the chapter's sine commander as a ROS node
     jointctl traj-client [--seed N] [--server S]    the chapter's example trajectory action client
     jointctl tune ROBOT --controllers NAME [--port P]  the tuning page: live plots, gains, sources
+    jointctl controller ROBOT [--motion-port P]     a simulated industrial controller (simple_message)
 
 Every error a user can cause is printed as one line naming the file, field
 and value, with exit status 2.
@@ -97,6 +98,16 @@ def _parser() -> argparse.ArgumentParser:
     tune.add_argument("--allow-remote", action="store_true",
                       help="allow --host other than loopback: anyone reaching it can move the robot")
     tune.add_argument("--out", type=Path, default=Path("out/tune"), help="where 'Write gains YAML' writes")
+    controller = sub.add_parser("controller", help="a simulated industrial robot controller: the robot in MuJoCo with "
+                                                   "its own interpolator, speaking simple_message")
+    _live_target_arguments(controller)
+    controller.add_argument("--host", default="0.0.0.0", help="address to listen on (default 0.0.0.0, as a "
+                                                              "controller cabinet does)")
+    controller.add_argument("--motion-port", type=int, default=11000, help="motion port (default 11000; 0: any free)")
+    controller.add_argument("--state-port", type=int, default=11002, help="state port (default 11002; 0: any free)")
+    controller.add_argument("--big-endian", action="store_true", help="speak big-endian (for the _bswap drivers)")
+    controller.add_argument("--state-rate-hz", type=float, default=50.0,
+                            help="joint state and status reports per second (default 50)")
     return parser
 
 
@@ -189,6 +200,28 @@ def _serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _controller(args: argparse.Namespace) -> int:
+    import signal
+
+    from jointctl.industrial.controller import SimulatedController
+
+    scenario = _live_scenario(args)
+    controller = SimulatedController(scenario, host=args.host, motion_port=args.motion_port,
+                                     state_port=args.state_port, big_endian=args.big_endian,
+                                     state_rate_hz=args.state_rate_hz, speed=args.speed)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: controller.stop())
+    order = "big-endian" if args.big_endian else "little-endian"
+    print(f"jointctl controller: {scenario.robot.name} (joints "
+          f"{', '.join(controller.joint_names)}) on {args.host}, motion port {controller.motion_port}, "
+          f"state port {controller.state_port}, {order}", flush=True)
+    try:
+        controller.run()
+    finally:
+        controller.close()
+    return 0
+
+
 def _industrial_hardware(args: argparse.Namespace, scenario):
     """The robot controller behind ``serve --hardware industrial``, connected (or a clear error)."""
     from jointctl.hardware.industrial import IndustrialHardware
@@ -267,7 +300,7 @@ def _tune(args: argparse.Namespace) -> int:
 
 
 _COMMANDS = {"serve": _serve, "list": _list, "run": _run, "demo": _demo, "prompt": _prompt, "play": _play,
-             "sine": _sine, "traj-client": _traj_client, "tune": _tune}
+             "sine": _sine, "traj-client": _traj_client, "tune": _tune, "controller": _controller}
 
 
 if __name__ == "__main__":

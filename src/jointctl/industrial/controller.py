@@ -115,6 +115,9 @@ class SimulatedController:
         self.state_port = self._state_server.getsockname()[1]
 
     def _listen(self, host: str, port: int, what: str) -> socket.socket:
+        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+            raise ControllerUnavailable("must be a TCP port, 0 to 65535 (0: any free port)", field=f"{what}_port",
+                                        value=port)
         try:
             server = socket.create_server((host, port), backlog=1)
         except OSError as exc:
