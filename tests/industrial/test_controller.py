@@ -243,3 +243,30 @@ def test_joints_without_position_servos_are_refused_naming_the_joint() -> None:
     with pytest.raises(ConfigError) as info:
         SimulatedController(scenario_for_robot("one_dof", "velocity"), motion_port=0, state_port=0)
     assert info.value.field == "joint" and info.value.value == "joint1"
+
+
+def test_a_refusal_reaches_jointctl_as_a_fault_once_and_the_next_motion_clears_it(controller) -> None:
+    hw = IndustrialHardware(["joint1"], robot_ip="127.0.0.1", motion_port=controller.motion_port,
+                            state_port=controller.state_port, big_endian=controller.big_endian)
+    hw.connect()
+    try:
+        hw.command_buffer(POSITION)[0] = 0.5  # beyond joint1's upper limit (0 m)
+        hw.write()
+
+        def refusal_reported() -> bool:
+            hw.read()
+            return hw.fault == "the controller refused a point (STATUS error_code 1)"
+
+        wait_for(refusal_reported, "the refusal as a fault")
+        hw.read()
+        assert hw.fault is None and joint1(controller) == pytest.approx(START_M, abs=1e-3)
+        for k in range(1, 600):  # a good motion afterwards: from sequence 0 again
+            hw.command_buffer(POSITION)[0] = START_M + 0.1 * min(k / 300, 1.0)
+            hw.advance(0.001)
+            hw.write()
+            time.sleep(0.001)
+        wait_for(lambda: abs(joint1(controller) - START_M - 0.1) < 2e-3, "the good motion")
+        hw.read()
+        assert hw.status.in_error == 0 and hw.fault is None
+    finally:
+        hw.close()

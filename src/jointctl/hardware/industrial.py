@@ -21,7 +21,9 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   :meth:`stop_motion` sends STOP (-4).
 - **Faults**: ``fault`` says why the robot cannot be commanded now (``None`` when it can): the
   state stale for ``stale_after_s`` (ROS-I's action server aborts after 1 s without feedback), or
-  a connection lost. Lost connections are re-opened in the background every ``retry_s``; the
+  a connection lost; and, for one :meth:`read`, that the controller refused a point (STATUS
+  ``in_error``): enough for the executor to abort its goal, after which the next motion starts a
+  new trajectory, which clears the controller's error. Lost connections are re-opened in the background every ``retry_s``; the
   fault clears when state flows again. The trajectory executor aborts its goal on a fault and
   refuses new ones while it lasts.
 
@@ -43,6 +45,7 @@ from jointctl.hardware.interface import POSITION, HardwareInterface
 from jointctl.industrial.simple_message import (
     MAX_JOINTS,
     STOP_TRAJECTORY,
+    TRISTATE_TRUE,
     CommType,
     JointPosition,
     JointTrajPt,
@@ -97,6 +100,7 @@ class IndustrialHardware(HardwareInterface):
         self._last_sent: list[float] | None = None
         self._streaming = False  # a point was sent at the last stream tick
         self._sequence = 0
+        self._refusal_reported = False  # the controller's current in_error was turned into a fault
         self._outbox: queue.SimpleQueue = queue.SimpleQueue()
         self._closing = threading.Event()
         self._motion: socket.socket | None = None
@@ -268,8 +272,16 @@ class IndustrialHardware(HardwareInterface):
             self.position[:] = reported
             self.velocity[:] = velocity
         age = time.monotonic() - reported_at
+        status = self.status
+        refused = status is not None and status.in_error == TRISTATE_TRUE
         if self._motion_lost is not None:
             self.fault = self._motion_lost
+        elif refused and not self._refusal_reported:
+            # Reported for one read: the trajectory in progress is aborted; the next motion starts a
+            # new trajectory (sequence 0), which clears the controller's error.
+            self._refusal_reported = True
+            self._last_sent = None
+            self.fault = f"the controller refused a point (STATUS error_code {status.error_code})"
         elif self._state is None or age > self.stale_after_s:
             self.fault = (f"no joint state from {self.robot_ip}:{self.state_port} for {age:.1f} s"
                           if reported is not None else "no joint state yet")
@@ -277,6 +289,8 @@ class IndustrialHardware(HardwareInterface):
                 self.velocity[:] = [0.0] * len(self.velocity)
         else:
             self.fault = None
+        if not refused:
+            self._refusal_reported = False
 
     def write(self) -> None:
         if self._time_s + 1e-9 < self._next_stream_s:
