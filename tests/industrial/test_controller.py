@@ -270,3 +270,28 @@ def test_a_refusal_reaches_jointctl_as_a_fault_once_and_the_next_motion_clears_i
         assert hw.status.in_error == 0 and hw.fault is None
     finally:
         hw.close()
+
+
+def test_stop_motion_is_a_fault_until_the_controller_reports_the_robot_at_rest(controller) -> None:
+    hw = IndustrialHardware(["joint1"], robot_ip="127.0.0.1", motion_port=controller.motion_port,
+                            state_port=controller.state_port, big_endian=controller.big_endian)
+    hw.connect()
+    try:
+        for k in range(1, 400):  # toward -0.1 m at 0.5 m/s
+            hw.command_buffer(POSITION)[0] = START_M + 0.5 * k / 1000
+            hw.advance(0.001)
+            hw.write()
+            time.sleep(0.001)
+        hw.read()
+        assert hw.fault is None and hw.status.in_motion == 1
+        hw.stop_motion()
+        hw.read()
+        assert hw.fault == "stopping: STOP sent, until the controller reports the robot at rest"
+        wait_for(lambda: (hw.read(), hw.fault is None)[1], "the stop to end")
+        assert hw.status.in_motion == 0
+        time.sleep(0.3)
+        hw.read()
+        assert joint1(controller) == pytest.approx(hw.position[0], abs=2e-3)
+        assert hw.position[0] < -0.2  # stopped short of -0.1 m
+    finally:
+        hw.close()

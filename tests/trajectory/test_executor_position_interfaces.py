@@ -124,3 +124,79 @@ def test_a_hardware_fault_aborts_the_goal_refuses_new_ones_and_holds(arm, write_
     loop.run(4.0)
     assert again.status is GoalStatus.SUCCEEDED
     assert hw.sent[-1] == pytest.approx([0.3] * 7, abs=1e-12)
+
+
+class StoppingHardware(ServoedHardware):
+    """Servoed joints that, on stop_motion, coast on by themselves for ``stop_cycles`` cycles (an
+    industrial controller braking at its own limits) and report a fault meanwhile."""
+
+    def __init__(self, *args, stop_cycles: int = 50, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.stop_calls = 0
+        self.stop_cycles = stop_cycles
+        self._coast = 0
+        self._step = [0.0] * len(self.joint_names)
+
+    def stop_motion(self) -> None:
+        self.stop_calls += 1
+        if len(self.sent) >= 2:
+            self._step = [a - b for a, b in zip(self.sent[-1], self.sent[-2])]
+        self._coast = self.stop_cycles
+        self.fault = "stopping"
+
+    def advance(self, period_s: float) -> None:
+        if self._coast:  # keeps moving, slower each cycle, whatever is commanded
+            self._coast -= 1
+            scale = self._coast / self.stop_cycles
+            self.position[:] = [q + d * scale for q, d in zip(self.position, self._step)]
+            if not self._coast:
+                self.fault = None
+        else:
+            super().advance(period_s)
+
+
+def test_a_cancel_stops_the_hardware_and_the_reference_follows_it_to_rest(arm, write_yaml) -> None:
+    hw = StoppingHardware(JOINTS, [0.2] * 7)
+    manager = manager_of(hw, arm, write_yaml)
+    executor = manager.load(TRAJ)
+    manager.start([TRAJ])
+    loop = ControlLoop(hw, manager)
+    handle = executor.submit(goal([0.6] * 7, 3.0), now_s=0.0)
+    loop.run(1.0)
+    assert hw.stop_calls == 0
+    handle.cancel()
+    loop.run(cycles=2)
+    assert handle.status is GoalStatus.PREEMPTED and hw.stop_calls == 1
+    loop.run(cycles=10)
+    assert hw.fault == "stopping"
+    assert hw.sent[-1] == pytest.approx(hw.position, abs=0.01)  # the reference follows the coasting joints
+    loop.run(0.5)
+    assert hw.fault is None
+    rest = list(hw.position)
+    loop.run(0.5)
+    assert hw.position == rest and hw.sent[-1] == rest  # nothing moves when the stop is over
+
+
+def test_without_a_cancel_the_hardware_is_never_asked_to_stop(arm, write_yaml) -> None:
+    hw = StoppingHardware(JOINTS, [0.2] * 7)
+    manager = manager_of(hw, arm, write_yaml)
+    executor = manager.load(TRAJ)
+    manager.start([TRAJ])
+    loop = ControlLoop(hw, manager)
+    handle = executor.submit(goal([0.6] * 7, 3.0), now_s=0.0)
+    loop.run(4.0)
+    assert handle.status is GoalStatus.SUCCEEDED and hw.stop_calls == 0
+
+
+def test_a_path_tolerance_abort_stops_the_hardware_too(arm, write_yaml) -> None:
+    hw = StoppingHardware(JOINTS, [0.2] * 7)
+    manager = manager_of(hw, arm, write_yaml, path_tolerance=0.05)
+    executor = manager.load(TRAJ)
+    manager.start([TRAJ])
+    loop = ControlLoop(hw, manager)
+    handle = executor.submit(goal([0.6] * 7, 3.0), now_s=0.0)
+    loop.run(1.0)
+    hw.position[3] += 0.2  # joint3 knocked off its path
+    loop.run(cycles=1)
+    assert handle.status is GoalStatus.ABORTED and "joint3" in handle.result.error_string
+    assert hw.stop_calls == 1

@@ -18,7 +18,8 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   starts with the robot at rest (STATUS ``in_motion`` 0, nothing streamed at the last tick)
   begins with sequence number 0, which tells the controller a new trajectory begins; every other
   point continues the numbering, so the controller queues it behind the ones it has.
-  :meth:`stop_motion` sends STOP (-4).
+  :meth:`stop_motion` sends STOP (-4); ``fault`` then says "stopping" until the controller has
+  answered and reports the robot at rest.
 - **Faults**: ``fault`` says why the robot cannot be commanded now (``None`` when it can): the
   state stale for ``stale_after_s`` (ROS-I's action server aborts after 1 s without feedback), or
   a connection lost; and, for one :meth:`read`, that the controller refused a point (STATUS
@@ -101,6 +102,9 @@ class IndustrialHardware(HardwareInterface):
         self._streaming = False  # a point was sent at the last stream tick
         self._sequence = 0
         self._refusal_reported = False  # the controller's current in_error was turned into a fault
+        self._stopping = False  # STOP sent, the robot not yet reported at rest since it was answered
+        self._stop_answered_at: float | None = None  # time.monotonic() of the STOP's reply
+        self._status_at = -float("inf")  # arrival of the last STATUS, time.monotonic() [s]
         self._outbox: queue.SimpleQueue = queue.SimpleQueue()
         self._closing = threading.Event()
         self._motion: socket.socket | None = None
@@ -194,6 +198,7 @@ class IndustrialHardware(HardwareInterface):
                 self._state_reports += 1
         elif isinstance(message, RobotStatus):
             self.status = message
+            self._status_at = now
 
     def _reconnect(self, which: str) -> bool:
         """Re-open ``which`` connection, trying every ``retry_s``; False when closing."""
@@ -227,6 +232,7 @@ class IndustrialHardware(HardwareInterface):
                     self._motion.close()
                 self._motion = None
                 self._drop_outbox()
+                self._stopping = False  # the controller stops by itself when its client goes
                 self._last_sent = None  # after a reconnect, the next motion starts a new trajectory
                 if not self._reconnect("motion"):
                     return
@@ -243,6 +249,8 @@ class IndustrialHardware(HardwareInterface):
             for packet in reader.feed(data):
                 if packet.comm_type == CommType.SERVICE_REPLY and packet.msg_type == MsgType.JOINT_TRAJ_PT:
                     self.replies += 1
+                    if point.sequence == STOP_TRAJECTORY:
+                        self._stop_answered_at = time.monotonic()
                     return
 
     def _drop_outbox(self) -> None:
@@ -255,10 +263,20 @@ class IndustrialHardware(HardwareInterface):
                 return
 
     def stop_motion(self) -> None:
-        """Send STOP (-4): the controller decelerates to rest and clears its queue."""
+        """Send STOP (-4): the controller decelerates to rest and clears its queue. Until it has
+        answered and a later STATUS says the robot is not in motion, ``fault`` says so (the
+        executor then follows the measured position, so that nothing moves when it clears)."""
         self._drop_outbox()
+        self._stop_answered_at = None
+        self._stopping = True
         self._outbox.put(JointTrajPt(STOP_TRAJECTORY, (0.0,) * MAX_JOINTS, 0.0, 0.0))
         self._last_sent = None  # the next motion starts a new trajectory from where the robot stops
+
+    def _stopped(self, status: RobotStatus | None) -> bool:
+        """The STOP was answered and a STATUS since says the robot is not in motion."""
+        answered = self._stop_answered_at
+        return (answered is not None and status is not None and self._status_at > answered
+                and status.in_motion != TRISTATE_TRUE)
 
     # -- HardwareInterface -----------------------------------------------------------------------------
     def command_interfaces(self, joint: str) -> frozenset[str]:
@@ -274,8 +292,12 @@ class IndustrialHardware(HardwareInterface):
         age = time.monotonic() - reported_at
         status = self.status
         refused = status is not None and status.in_error == TRISTATE_TRUE
+        if self._stopping and self._stopped(status):
+            self._stopping = False
         if self._motion_lost is not None:
             self.fault = self._motion_lost
+        elif self._stopping:
+            self.fault = "stopping: STOP sent, until the controller reports the robot at rest"
         elif refused and not self._refusal_reported:
             # Reported for one read: the trajectory in progress is aborted; the next motion starts a
             # new trajectory (sequence 0), which clears the controller's error.

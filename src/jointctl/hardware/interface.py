@@ -154,5 +154,12 @@ class HardwareInterface(ABC):
     def advance(self, period_s: float) -> None:
         """Let ``period_s`` seconds of hardware time pass."""
 
+    def stop_motion(self) -> None:
+        """Bring the joints to rest by the hardware's own means, for a canceled or aborted motion.
+
+        Hardware that servos by itself (an industrial controller with its own interpolator) stops
+        there at its own limits and reports ``fault`` until at rest. The default does nothing:
+        the controllers' decelerating references stop the joints."""
+
     def reset(self) -> None:
         """Return to the initial state, where the hardware can (simulators); else no-op."""

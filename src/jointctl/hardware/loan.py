@@ -50,6 +50,10 @@ class HardwareLoan:
                               source=self._source, field=self.borrower, value=interface)
         return self._hardware.command_buffer(interface)
 
+    def stop_motion(self) -> None:
+        """Bring the joints to rest by the hardware's own means (see ``HardwareInterface.stop_motion``)."""
+        self._hardware.stop_motion()
+
     def read(self) -> None:
         """Refresh the state handles now (a controller starting between cycles wants the present)."""
         self._hardware.read()

@@ -345,7 +345,7 @@ class TrajectoryExecutor(Controller):
         if self._streamed is not None:
             self._take_stream(time_s)
         goal = goals.active
-        if goal is not None and self.hardware.fault is not None:  # e.g. the robot's state went stale
+        if self.hardware.fault is not None:  # e.g. the robot's state went stale, or it stops by itself
             self._hardware_fault(time_s)
             goal = None
         plan = self._plan
@@ -354,6 +354,7 @@ class TrajectoryExecutor(Controller):
                                           self.stop_deceleration)                      # desired state
             goals.end(GoalStatus.PREEMPTED, TrajectoryErrorCode.SUCCESSFUL, "canceled", time_s)
             goal = None
+            self.hardware.stop_motion()
         if plan is not None:
             stream_period = self._stream_period_s
             if stream_period is None:
@@ -370,8 +371,10 @@ class TrajectoryExecutor(Controller):
 
     def _hardware_fault(self, time_s: float) -> None:
         """The hardware cannot be commanded (its ``fault``): goals end ABORTED saying why, and the
-        references hold the measured position, so nothing jumps when it comes back."""
-        self.goals.abort_all(f"the hardware cannot be commanded: {self.hardware.fault}", time_s)
+        references follow the measured position while the fault lasts, so nothing jumps when it
+        clears (a robot stopping by itself is followed to where it comes to rest)."""
+        if self.goals.active is not None or self.goals.pending is not None:
+            self.goals.abort_all(f"the hardware cannot be commanded: {self.hardware.fault}", time_s)
         self._plan = None
         self._ref = interleave(self._of_joints(self.hardware.position), self._zeros, self._zeros)
 
@@ -447,6 +450,7 @@ class TrajectoryExecutor(Controller):
             if k is not None:
                 self._plan = Plan.stop(self._state(), time_s, 0.0,  # this cycle's desired state, at its time
                                        self.stop_deceleration)
+                self.hardware.stop_motion()
                 self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.PATH_TOLERANCE_VIOLATED,
                                f"joint {self.joint_names[k]!r} is {abs(desired[k] - actual[k]):.4g} from "
                                f"its path (tolerance {self.path_tolerance[k]})", time_s)
