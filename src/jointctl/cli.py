@@ -100,7 +100,7 @@ def _parser() -> argparse.ArgumentParser:
     tune.add_argument("--out", type=Path, default=Path("out/tune"), help="where 'Write gains YAML' writes")
     controller = sub.add_parser("controller", help="a simulated industrial robot controller: the robot in MuJoCo with "
                                                    "its own interpolator, speaking simple_message")
-    _live_target_arguments(controller)
+    _live_target_arguments(controller)  # controllers: the robot's servo file by default
     controller.add_argument("--host", default="0.0.0.0", help="address to listen on (default 0.0.0.0, as a "
                                                               "controller cabinet does)")
     controller.add_argument("--motion-port", type=int, default=11000, help="motion port (default 11000; 0: any free)")
@@ -128,7 +128,8 @@ def _live_scenario(args: argparse.Namespace):
     if not args.speed > 0:
         raise JointCtlError("must be positive", field="--speed", value=args.speed)
     if args.target in builtin_robots():
-        default = "industrial" if getattr(args, "hardware", "sim") == "industrial" else "position"
+        default = ("servo" if args.command == "controller"
+                   else "industrial" if getattr(args, "hardware", "sim") == "industrial" else "position")
         return scenario_for_robot(args.target, args.controllers or default, args.overrides)
     return load_scenario(args.target, args.overrides)
 

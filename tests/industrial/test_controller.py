@@ -33,11 +33,6 @@ from jointctl.industrial.simple_message import (
 from jointctl.scenario.spec import scenario_for_robot
 
 TIMEOUT_S = 20.0
-# The piston's servo: the chapter's P gain with a derivative for a damping ratio near 1
-# (m = 1.01 kg, b = 10 N·s/m: d = 2·sqrt(400·1.01) - 10 ≈ 30 N·s/m), and the model's gravity
-# feed-forward so that it holds where it starts.
-SERVO = ["controllers.joint1_position_controller.pid.d=30",
-         "controllers.joint1_position_controller.feedforward.gravity=true"]
 START_M = -0.5  # robot.yaml's serve default for one_dof
 
 
@@ -50,7 +45,7 @@ def wait_for(condition, what: str, timeout_s: float = TIMEOUT_S) -> None:
 
 @pytest.fixture(params=[False, True], ids=["little-endian", "big-endian"])
 def controller(request):
-    ctl = SimulatedController(scenario_for_robot("one_dof", "position", SERVO), host="127.0.0.1",
+    ctl = SimulatedController(scenario_for_robot("one_dof", "servo"), host="127.0.0.1",
                               motion_port=0, state_port=0, big_endian=request.param)
     thread = threading.Thread(target=ctl.run, daemon=True)
     thread.start()

@@ -319,3 +319,13 @@ def test_no_byte_stream_of_refused_points_and_garbage_raises_or_moves_the_robot(
                          + encode(JointTrajPt(1, (0.0, 0.0), 0.0, 1.0), REQUEST))
     assert [reply_code(r) for r in replies] == [ReplyCode.SUCCESS, ReplyCode.SUCCESS]
     assert run(program, 1.1)[0] == pytest.approx([0.0, 0.0], abs=1e-6)
+
+
+def test_stops_and_refusals_are_logged_one_line_each_naming_field_and_value() -> None:
+    lines: list[str] = []
+    program = ControllerProgram(LIMITS, [0.0, 0.0], on_event=lines.append)
+    program.handle(point(0, (0.0, 0.0)))
+    program.handle(point(1, (0.5, 7.5), 1.0))
+    program.handle(point(STOP_TRAJECTORY, ()))
+    assert lines == ["refused a point (error_code 1): positions[1]: outside the joint's range [-2, 2] (got 7.5); "
+                     "the trajectory is stopped", "STOP: decelerating to rest, queue cleared"]

@@ -91,7 +91,7 @@ class SimulatedController:
         hardware.read()
         start = [hardware.position[i] for i in self._indices]
         self.program = ControllerProgram(JointLimits.from_model(robot, self.joint_names, stop_time_s=stop_time_s),
-                                         start, big_endian=big_endian, capacity=queue_capacity)
+                                         start, big_endian=big_endian, capacity=queue_capacity, on_event=_log)
         self.big_endian = big_endian
         self.state_period_s = 1.0 / state_rate_hz
         self.moving_threshold = moving_threshold
@@ -201,16 +201,20 @@ class SimulatedController:
     def _serve_motion(self) -> None:
         while (conn := self._accept(self._motion_server)) is not None:
             self.motion_clients += 1
+            peer = _peer(conn)
+            _log(f"motion client {peer} connected")
+            why = "disconnected"
             try:
-                self._motion_connection(conn)
+                why = self._motion_connection(conn)
             except Exception as exc:  # noqa: BLE001  (nothing a client does may stop the server)
-                print(f"jointctl controller: motion connection closed: {exc}", file=sys.stderr, flush=True)
+                why = f"connection failed ({exc})"
             finally:
                 conn.close()
                 self.program.connection_lost()
+                _log(f"motion client {peer} {why}; the robot decelerates to rest")
 
-    def _motion_connection(self, conn: socket.socket) -> None:
-        """Answer one client's packets until it disconnects, its framing is lost, or closing."""
+    def _motion_connection(self, conn: socket.socket) -> str:
+        """Answer one client's packets until it disconnects, its framing is lost, or closing; why it ended."""
         alive = [True]
         connection = MotionConnection(self.program, lambda: alive[0] and not self._closing.is_set())
         while not self._closing.is_set() and not connection.closed:
@@ -220,18 +224,22 @@ class SimulatedController:
                 continue
             if not data:
                 alive[0] = False
-                return
+                return "disconnected"
             for reply in connection.feed(data):
                 conn.sendall(reply)
+        return "sent a length prefix out of range (framing lost): closed" if connection.closed else "closed"
 
     def _serve_state(self) -> None:
         while (conn := self._accept(self._state_server)) is not None:
+            peer = _peer(conn)
+            _log(f"state client {peer} connected")
             try:
                 self._state_connection(conn)
             except OSError:
                 pass  # the client went away: accept the next one
             finally:
                 conn.close()
+                _log(f"state client {peer} gone")
 
     def _state_connection(self, conn: socket.socket) -> None:
         """Push JOINT_POSITION and STATUS every ``state_period_s`` of wall-clock time."""
@@ -251,6 +259,19 @@ class SimulatedController:
                 self._closing.wait(delay)
             else:
                 next_s = time.monotonic()  # fell behind: report now, and keep the rate from here
+
+
+def _peer(conn: socket.socket) -> str:
+    try:
+        host, port = conn.getpeername()[:2]
+        return f"{host}:{port}"
+    except OSError:
+        return "?"
+
+
+def _log(line: str) -> None:
+    """One line of the controller's log, on stderr."""
+    print(f"jointctl controller: {line}", file=sys.stderr, flush=True)
 
 
 __all__ = ["MOTION_PORT", "STATE_PORT", "ControllerUnavailable", "SimulatedController"]

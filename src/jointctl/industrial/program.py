@@ -79,7 +79,8 @@ class ControllerProgram:
     size in points; ``download_capacity``: the longest download in points."""
 
     def __init__(self, limits: Sequence[JointLimits], start: Sequence[float], *, big_endian: bool = False,
-                 capacity: int = 32, download_capacity: int = 10_000) -> None:
+                 capacity: int = 32, download_capacity: int = 10_000,
+                 on_event: Callable[[str], None] | None = None) -> None:
         self.interpolator = Interpolator(limits, start, capacity=capacity)
         self.joint_count = len(self.interpolator.limits)
         self.big_endian = big_endian
@@ -91,6 +92,8 @@ class ControllerProgram:
         self._accepting = True                   # False after a refusal or a STOP, until a new trajectory
         #: The last refusal's code (``ERROR_*`` of the interpolator or of this module), 0 when none.
         self.error_code = 0
+        #: Called with one line for each STOP and each refusal (the controller's log).
+        self.on_event = on_event
         #: Points queued (streamed) or executed (downloaded) so far; and refused so far.
         self.accepted = 0
         self.refused = 0
@@ -111,9 +114,9 @@ class ControllerProgram:
             return self._reply(packet, ReplyCode.FAILURE, echo_body=False) if request else None
         try:
             message: JointTrajPt = decode(packet, big_endian=self.big_endian)
-        except MalformedPacket:
+        except MalformedPacket as exc:
             with self._lock:
-                self._refuse(ERROR_MALFORMED_POINT)
+                self._refuse(ERROR_MALFORMED_POINT, str(exc))
             return self._reply(packet, ReplyCode.FAILURE) if request else None
         code = self._on_point(message, keep_waiting)
         if code is None or not request:
@@ -134,6 +137,7 @@ class ControllerProgram:
         with self._lock:
             if seq == STOP_TRAJECTORY:
                 self._stop()
+                self._log("STOP: decelerating to rest, queue cleared")
                 return ReplyCode.SUCCESS
             if seq == START_TRAJECTORY_DOWNLOAD:
                 self._new_trajectory()
@@ -143,7 +147,7 @@ class ControllerProgram:
                 if not self._accepting:
                     return ReplyCode.FAILURE
                 if self._download is None:
-                    self._refuse(ERROR_NO_DOWNLOAD)
+                    self._refuse(ERROR_NO_DOWNLOAD, "END_TRAJECTORY (-3) without START_TRAJECTORY_DOWNLOAD (-1)")
                     return ReplyCode.FAILURE
                 code = self._keep_downloaded(point)
                 if code is ReplyCode.SUCCESS:
@@ -152,7 +156,7 @@ class ControllerProgram:
                     self._download = None
                 return code
             if seq < 0 and seq != START_TRAJECTORY_STREAMING:
-                self._refuse(ERROR_MALFORMED_POINT)
+                self._refuse(ERROR_MALFORMED_POINT, f"sequence: no such special value (got {seq})")
                 return ReplyCode.FAILURE
             if seq in (0, START_TRAJECTORY_STREAMING):
                 self._new_trajectory()
@@ -168,7 +172,7 @@ class ControllerProgram:
         try:
             interpolator.check(point)
         except RefusedPoint as refusal:
-            self._refuse(refusal.error_code)
+            self._refuse(refusal.error_code, str(refusal))
             return ReplyCode.FAILURE
         self._waiting += 1
         try:
@@ -191,10 +195,10 @@ class ControllerProgram:
         try:
             self.interpolator.check(point)
         except RefusedPoint as refusal:
-            self._refuse(refusal.error_code)
+            self._refuse(refusal.error_code, str(refusal))
             return ReplyCode.FAILURE
         if len(self._download) >= self.download_capacity:
-            self._refuse(ERROR_DOWNLOAD_FULL)
+            self._refuse(ERROR_DOWNLOAD_FULL, f"a download holds at most {self.download_capacity} points")
             return ReplyCode.FAILURE
         self._download.append(point)
         return ReplyCode.SUCCESS
@@ -214,10 +218,15 @@ class ControllerProgram:
         self._accepting = False
         self._lock.notify_all()
 
-    def _refuse(self, error_code: int) -> None:
+    def _refuse(self, error_code: int, why: str) -> None:
         self.refused += 1
         self.error_code = error_code
         self._stop()
+        self._log(f"refused a point (error_code {error_code}): {why}; the trajectory is stopped")
+
+    def _log(self, line: str) -> None:
+        if self.on_event is not None:
+            self.on_event(line)
 
     # -- the servo loop -----------------------------------------------------------------------------
     def cycle(self, period_s: float) -> tuple[list[float], list[float]]:

@@ -16,11 +16,11 @@ offers the same names, in the root namespace as ROS-I's launch files put them:
   controller's rate;
 - parameters ``robot_ip_address`` and ``controller_joint_names``.
 
-A stop (an empty ``joint_path_command``, ``stop_motion``) cancels the executor's goal and sends the
-controller STOP (-4): the controller decelerates at its own limits and clears its queue. The
-executor's reference decelerates too (within its ``stop_deceleration``); what is streamed after the
-stop starts a new trajectory at the controller, from where the robot is. Not yet tested end to end
-against the simulated controller (the hardware's STOP packet is tested in tests/hardware).
+A stop (an empty ``joint_path_command``, ``stop_motion``, or a canceled ``joint_trajectory_action``
+goal) cancels the executor's goal and sends the controller STOP (-4): the controller decelerates at
+its own limits and clears its queue; until it reports the robot at rest the hardware's ``fault``
+says "stopping" and the executor's reference follows the measured position, so what is streamed
+after the stop starts a new trajectory at the controller from where the robot came to rest.
 """
 
 from __future__ import annotations

@@ -1,0 +1,178 @@
+"""Section 11.5 end to end: ``jointctl controller`` (the robot in MuJoCo behind its own interpolator,
+speaking simple_message) driven by ``jointctl serve --hardware industrial`` on a real ROS graph, with
+real actionlib clients: the arm's pre-pose against the in-process executor, cancel as STOP, a
+controller lost and back, and the two on different hosts (network namespaces)."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.ros.conftest import free_port, run, wait_for_topic
+from tests.ros.test_across_hosts import ADDR_A, ADDR_B, _env, _in, hosts  # noqa: F401  (a fixture)
+
+CLIENT = str(Path(__file__).with_name("action_client.py"))
+SERVER = "/joint_trajectory_action"
+PRE_POSE = [0.0, 1.0, 0.0, -2.0, 0.0, 1.0, 0.0]
+ARM_JOINTS = [f"joint{k}" for k in range(7)]
+
+
+def start_controller(env, robot: str, *extra: str, motion_port: int = 0, state_port: int = 0, netns=None):
+    """``jointctl controller ROBOT`` in its own process; (process, motion port, state port)."""
+    cmd = [sys.executable, "-m", "jointctl.cli", "controller", robot, "--motion-port", str(motion_port),
+           "--state-port", str(state_port), *extra]
+    process = subprocess.Popen(_in(netns, *cmd) if netns else cmd, env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    line = process.stdout.readline()
+    match = re.search(r"motion port (\d+), state port (\d+)", line)
+    assert match, f"the controller did not start: {line!r} {process.stderr.read() if process.poll() else ''}"
+    return process, int(match.group(1)), int(match.group(2))
+
+
+def stop(process: subprocess.Popen) -> str:
+    """Terminate ``process``; its stderr."""
+    process.terminate()
+    try:
+        _, err = process.communicate(timeout=15)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        _, err = process.communicate(timeout=5)
+    return err
+
+
+@pytest.fixture
+def controllers():
+    started = []
+
+    def start(*args, **kwargs):
+        process, motion, state = start_controller(*args, **kwargs)
+        started.append(process)
+        return process, motion, state
+
+    yield start
+    for process in started:
+        if process.poll() is None:
+            stop(process)
+
+
+def serve_against(serve, robot: str, motion: int, state: int, *extra: str):
+    return serve(robot, "--hardware", "industrial", "--robot-ip", "127.0.0.1", "--motion-port", str(motion),
+                 "--state-port", str(state), *extra, wait_topic="/feedback_states")
+
+
+def follow(env, joint_names, points, *extra, timeout=120) -> dict:
+    result = run(env, sys.executable, CLIENT, "follow", SERVER,
+                 json.dumps({"joint_names": joint_names, "points": points}), *extra, timeout=timeout)
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def positions(env, topic: str = "/joint_states") -> list[float]:
+    text = wait_for_topic(env, topic)
+    return [float(x) for x in re.search(r"position: \[([^\]]*)\]", text).group(1).split(",")]
+
+
+def in_process_pre_pose() -> list[float]:
+    """Where the in-process executor leaves the arm: the arm7dof_pose experiment's last pose."""
+    from jointctl.scenario.session import Session
+    from jointctl.scenario.spec import load_scenario
+
+    with Session(load_scenario("arm7dof_pose")) as session:
+        session.run()
+        return list(session.hardware.position)
+
+
+@pytest.mark.slow
+def test_the_arms_pre_pose_through_the_bridge_ends_where_the_in_process_executor_does(ros_env, serve,
+                                                                                       controllers) -> None:
+    reference = in_process_pre_pose()
+    assert reference == pytest.approx(PRE_POSE, abs=0.01)  # the in-process run itself reached it
+    _, motion, state = controllers(ros_env, "arm7dof")
+    serve_against(serve, "arm7dof", motion, state)
+    # The chapter's timing for zeros -> pre-pose: joint3's 2 rad at half its 0.3 rad/s: 13.33 s.
+    done = follow(ros_env, ARM_JOINTS, [[0.02, [0.0] * 7], [13.35, PRE_POSE]])
+    assert done["state"] == "SUCCEEDED", done
+    time.sleep(1.0)
+    bridged = positions(ros_env)
+    assert bridged == pytest.approx(reference, abs=0.01)
+    assert "in_motion: \n  val: 0" in wait_for_topic(ros_env, "/robot_status")
+
+
+@pytest.mark.parametrize("big_endian", [False, True], ids=["little-endian", "big-endian"])
+def test_a_cancel_over_ros_is_a_stop_at_the_controller(ros_env, serve, controllers, big_endian) -> None:
+    order = ["--big-endian"] if big_endian else []
+    process, motion, state = controllers(ros_env, "one_dof", *order)
+    serve_against(serve, "one_dof", motion, state, *order)
+    done = follow(ros_env, ["joint1"], [[6.0, [-0.1]]], "--cancel-after", "2.0")
+    assert done["state"] == "PREEMPTED", done
+    time.sleep(1.5)
+    first = positions(ros_env)[0]
+    time.sleep(1.0)
+    assert positions(ros_env)[0] == pytest.approx(first, abs=1e-3)  # at rest
+    assert -0.45 < first < -0.15  # moved, and stopped well short of -0.1 m
+    assert "in_motion: \n  val: 0" in wait_for_topic(ros_env, "/robot_status")
+    assert "STOP: decelerating to rest, queue cleared" in stop(process)
+
+
+def test_a_controller_lost_mid_goal_aborts_it_and_is_found_again(ros_env, serve, controllers) -> None:
+    motion, state = free_port(), free_port()
+    process, _, _ = controllers(ros_env, "one_dof", motion_port=motion, state_port=state)
+    serve_against(serve, "one_dof", motion, state)
+    client = subprocess.Popen([sys.executable, CLIENT, "follow", SERVER,
+                               json.dumps({"joint_names": ["joint1"], "points": [[8.0, [-0.1]]]})],
+                              env=ros_env, stdout=subprocess.PIPE, text=True)
+    time.sleep(2.0)
+    process.kill()  # the controller dies mid-goal
+    out, _ = client.communicate(timeout=60)
+    done = json.loads(out.strip().splitlines()[-1])
+    assert done["state"] == "ABORTED", done
+    assert "the hardware cannot be commanded" in done["text"]
+    assert "127.0.0.1" in done["text"]
+    controllers(ros_env, "one_dof", motion_port=motion, state_port=state)  # back, on the same ports
+    deadline = time.monotonic() + 30
+    while True:  # the node reconnects by itself; goals are refused until the state flows again
+        done = follow(ros_env, ["joint1"], [[2.0, [-0.3]]])
+        if done["state"] == "SUCCEEDED":
+            break
+        assert done["state"] == "REJECTED" and time.monotonic() < deadline, done
+        time.sleep(1.0)
+    assert positions(ros_env)[0] == pytest.approx(-0.3, abs=0.01)
+
+
+def test_the_controller_and_the_ros_side_on_two_hosts(hosts, tmp_path) -> None:  # noqa: F811
+    """The controller on host A (10.200.0.1), master, node and client on host B (10.200.0.2)."""
+    ns_a, ns_b = hosts
+    env_b = _env(tmp_path, ADDR_B)
+    env_b["ROS_MASTER_URI"] = f"http://{ADDR_B}:11311"
+    processes, logs = [], {}
+    try:
+        controller, motion, state = start_controller(_env(tmp_path, ADDR_A), "one_dof", netns=ns_a)
+        processes.append(controller)
+        processes.append(subprocess.Popen(_in(ns_b, "rosmaster", "--core", "-p", "11311"), env=env_b,
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        processes.append(subprocess.Popen(
+            _in(ns_b, sys.executable, "-m", "jointctl.cli", "serve", "one_dof", "--hardware", "industrial",
+                "--robot-ip", ADDR_A, "--motion-port", str(motion), "--state-port", str(state)),
+            env=env_b, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True))
+        deadline = time.monotonic() + 40
+        while True:
+            echo = subprocess.run(_in(ns_b, "rostopic", "echo", "-n", "1", "/feedback_states"), env=env_b,
+                                  capture_output=True, text=True, timeout=15)
+            if echo.returncode == 0 and "-0.5" in echo.stdout:
+                break
+            assert time.monotonic() < deadline, f"no state from host A: {echo.stderr[-500:]}"
+            time.sleep(0.5)
+        goal = {"joint_names": ["joint1"], "points": [[1.0, [-0.4]], [2.0, [-0.3]]]}
+        result = subprocess.run(_in(ns_b, sys.executable, CLIENT, "follow", SERVER, json.dumps(goal)),
+                                env=env_b, capture_output=True, text=True, timeout=90)
+        done = json.loads(result.stdout.strip().splitlines()[-1])
+        assert done["state"] == "SUCCEEDED", done
+    finally:
+        for process in reversed(processes):
+            logs[process.pid] = stop(process) if process.poll() is None else ""
+    assert f"motion client {ADDR_B}:" in logs[controller.pid]  # the client came from the other host
