@@ -45,6 +45,7 @@ class Peer:
         self.big_endian, self.period_s = big_endian, period_s
         self.positions = list(positions)
         self.follow = follow  # jump to each point received (an ideal servo)
+        self.step_per_report = 0.0  # added to the first joint after each JOINT_POSITION sent
         self.in_motion = 0
         self.points: list[JointTrajPt] = []
         self.hold = threading.Event()
@@ -78,6 +79,7 @@ class Peer:
                 while not self.closing.is_set():
                     if self.publishing.is_set():
                         conn.sendall(encode(JointPosition(0, tuple(self.positions)), big_endian=self.big_endian))
+                        self.positions[0] += self.step_per_report
                         conn.sendall(encode(RobotStatus(1, 0, 0, 0, self.in_motion, 2, 1), big_endian=self.big_endian))
                     time.sleep(self.period_s)
             except OSError:

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from tests.hardware.test_industrial import Peer
-from tests.ros.conftest import free_port, run, wait_for_topic
+from tests.ros.conftest import free_port, joint_positions, run, wait_for_topic
 
 CLIENT = str(Path(__file__).with_name("action_client.py"))
 SERVER = "/joint_trajectory_action"
@@ -84,3 +84,12 @@ def test_robot_ip_is_required_with_industrial_hardware(ros_env):
     result = run(ros_env, sys.executable, "-m", "jointctl.cli", "serve", "one_dof", "--hardware", "industrial",
                  timeout=60, check=False)
     assert result.returncode == 2 and "--robot-ip: is required with --hardware industrial" in result.stderr
+
+
+def test_every_state_report_is_relayed_once_as_ros_is_robot_state_does(ros_env, serve, peer):
+    serve_industrial(serve, peer)
+    peer.period_s = 0.05  # 20 Hz: 50 of the node's 1 ms cycles between reports
+    peer.step_per_report = 0.0009765625  # 2^-10 m, exact in float32: reports are told apart by their value
+    seen = joint_positions(ros_env, "/joint_states", 40)
+    steps = [b - a for a, b in zip(seen, seen[1:])]
+    assert steps == pytest.approx([2**-10] * len(steps), abs=1e-7)  # none skipped, none twice

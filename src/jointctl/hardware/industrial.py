@@ -112,6 +112,8 @@ class IndustrialHardware(HardwareInterface):
         self._motion_lost: str | None = None
         self._threads: list[threading.Thread] = []
         self.replies = 0  # points the controller acknowledged
+        #: JOINT_POSITION reports received when ``position`` was last refreshed (by :meth:`read`).
+        self.reports_read = 0
 
     # -- connection ------------------------------------------------------------------------------------
     def connect(self, *, first_state_timeout_s: float = 5.0) -> None:
@@ -286,6 +288,7 @@ class IndustrialHardware(HardwareInterface):
     def read(self) -> None:
         with self._lock:
             reported, reported_at, velocity = self._reported, self._reported_at, self._velocity
+            self.reports_read = self._state_reports
         if reported is not None:
             self.position[:] = reported
             self.velocity[:] = velocity

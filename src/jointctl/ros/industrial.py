@@ -10,10 +10,10 @@ offers the same names, in the root namespace as ROS-I's launch files put them:
 - ``joint_path_command``: the topic (trajectory_msgs/JointTrajectory: a trajectory to execute, an
   empty one stops) and the service (industrial_msgs/CmdJointTrajectory, the same, answering
   SUCCESS or FAILURE); ``stop_motion`` (industrial_msgs/StopMotion);
-- ``joint_states`` (sensor_msgs/JointState, positions as the controller reports them),
-  ``feedback_states`` (control_msgs/FollowJointTrajectoryFeedback, ``actual.positions``) and
-  ``robot_status`` (industrial_msgs/RobotStatus, from the controller's STATUS), at the joint state
-  controller's rate;
+- ``joint_states`` (sensor_msgs/JointState, positions as the controller reports them) and
+  ``feedback_states`` (control_msgs/FollowJointTrajectoryFeedback, ``actual.positions``) for each
+  JOINT_POSITION the controller sends, and ``robot_status`` (industrial_msgs/RobotStatus) for each
+  STATUS, as ROS-I's ``robot_state`` relays them (checked every loop cycle: at most one cycle late);
 - parameters ``robot_ip_address`` and ``controller_joint_names``.
 
 A stop (an empty ``joint_path_command``, ``stop_motion``, or a canceled ``joint_trajectory_action``
@@ -42,21 +42,20 @@ from jointctl.trajectory.executor import TrajectoryExecutor
 class IndustrialTopics:
     """ROS-I's names for ``executor`` driving ``hardware`` (see the module docstring)."""
 
-    def __init__(self, hardware: IndustrialHardware, executor: TrajectoryExecutor, clock, loop,
-                 rate_hz: float = 50.0) -> None:
+    def __init__(self, hardware: IndustrialHardware, executor: TrajectoryExecutor, clock, loop) -> None:
         self.hardware, self.executor, self.clock = hardware, executor, clock
         rospy.set_param("/robot_ip_address", hardware.robot_ip)
         rospy.set_param("/controller_joint_names", list(hardware.joint_names))
         self.action = TrajectoryActionServer("/joint_trajectory_action", "follow_joint_trajectory", executor, clock)
         self._joint_states = rospy.Publisher("/joint_states", JointState, queue_size=10)
         self._feedback = rospy.Publisher("/feedback_states", FollowJointTrajectoryFeedback, queue_size=10)
-        self._status = rospy.Publisher("/robot_status", RobotStatus, queue_size=10)
+        self._status_topic = rospy.Publisher("/robot_status", RobotStatus, queue_size=10)
         rospy.Subscriber("/joint_path_command", RosJointTrajectory, self._on_path, queue_size=1)
         rospy.Service("/joint_path_command", CmdJointTrajectory, self._on_path_service)
         rospy.Service("/stop_motion", StopMotion, self._on_stop_service)
         self._goal = None
-        self._period_s = 1.0 / rate_hz
-        self._next_s = 0.0
+        self._reports = 0  # the hardware's reports_read when last published
+        self._status = None  # the last STATUS published
         loop.add_observer(self._publish)
 
     # -- commands (rospy's threads) ---------------------------------------------------------------
@@ -94,30 +93,29 @@ class IndustrialTopics:
 
     # -- state (the loop thread: publishing only queues) -------------------------------------------
     def _publish(self, time_s: float) -> None:
-        if time_s + 1e-9 < self._next_s:
-            return
-        self._next_s += self._period_s
         hw = self.hardware
-        if hw.state_reports == 0:
-            return
-        stamp = rospy.Time.now()
-        names, positions = list(hw.joint_names), list(hw.position)
-        joint_state = JointState(name=names, position=positions)
-        joint_state.header.stamp = stamp
-        self._joint_states.publish(joint_state)
-        feedback = FollowJointTrajectoryFeedback(joint_names=names)
-        feedback.header.stamp = stamp
-        feedback.actual.positions = positions
-        self._feedback.publish(feedback)
-        status = hw.status
-        if status is not None:
+        reports, status = hw.reports_read, hw.status
+        if reports != self._reports:
+            self._reports = reports
+            stamp = rospy.Time.now()
+            names, positions = list(hw.joint_names), list(hw.position)
+            joint_state = JointState(name=names, position=positions)
+            joint_state.header.stamp = stamp
+            self._joint_states.publish(joint_state)
+            feedback = FollowJointTrajectoryFeedback(joint_names=names)
+            feedback.header.stamp = stamp
+            feedback.actual.positions = positions
+            self._feedback.publish(feedback)
+        if status is not None and status is not self._status:
+            self._status = status
+            stamp = rospy.Time.now()
             message = RobotStatus(
                 mode=RobotMode(val=status.mode), e_stopped=TriState(val=status.e_stopped),
                 drives_powered=TriState(val=status.drives_powered),
                 motion_possible=TriState(val=status.motion_possible), in_motion=TriState(val=status.in_motion),
                 in_error=TriState(val=status.in_error), error_code=status.error_code)
             message.header.stamp = stamp
-            self._status.publish(message)
+            self._status_topic.publish(message)
 
 
 __all__ = ["IndustrialTopics"]
