@@ -63,6 +63,9 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--big-endian", action="store_true", help="the controller speaks big-endian (the _bswap drivers)")
     serve.add_argument("--stream-rate-hz", type=float, default=50.0,
                        help="points streamed to the controller per second (default 50)")
+    serve.add_argument("--motion", choices=("streaming", "download"), default="streaming",
+                       help="the controller's motion handshake: points streamed as a goal runs (default), or "
+                            "each goal downloaded whole and executed after its last point")
 
     demo = sub.add_parser("demo", help="run every built-in experiment and write report.md")
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder")
@@ -233,7 +236,8 @@ def _industrial_hardware(args: argparse.Namespace, scenario):
     robot = load_robot_model(scenario.robot.description)
     hardware = IndustrialHardware([j.name for j in robot.movable_joints], robot_ip=args.robot_ip,
                                   motion_port=args.motion_port, state_port=args.state_port,
-                                  big_endian=args.big_endian, stream_rate_hz=args.stream_rate_hz)
+                                  big_endian=args.big_endian, stream_rate_hz=args.stream_rate_hz,
+                                  motion=args.motion)
     hardware.connect()
     return hardware
 

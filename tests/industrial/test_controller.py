@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from jointctl.errors import ConfigError
+from jointctl.errors import ConfigError, JointCtlError
 from jointctl.hardware.industrial import IndustrialHardware
 from jointctl.hardware.interface import POSITION
 from jointctl.industrial.controller import ControllerUnavailable, SimulatedController
@@ -290,3 +290,32 @@ def test_stop_motion_is_a_fault_until_the_controller_reports_the_robot_at_rest(c
         assert hw.position[0] < -0.2  # stopped short of -0.1 m
     finally:
         hw.close()
+
+
+def test_a_goal_downloaded_whole_is_executed_by_the_controller(controller) -> None:
+    from jointctl.scenario.session import Session
+    from jointctl.trajectory.executor import GoalStatus
+    from jointctl.trajectory.messages import JointTrajectory, JointTrajectoryPoint
+
+    hw = IndustrialHardware(["joint1"], robot_ip="127.0.0.1", motion_port=controller.motion_port,
+                            state_port=controller.state_port, big_endian=controller.big_endian, motion="download")
+    hw.connect()
+    try:
+        session = Session(scenario_for_robot("one_dof", "industrial"), hardware=hw, realtime=True)
+        executor = session.manager.controller("joint1_trajectory_controller")
+        goal = JointTrajectory(("joint1",), (JointTrajectoryPoint(positions=(-0.3,), time_from_start_s=1.0),))
+        handle = executor.submit(goal, now_s=0.0)
+        session.run(1.0)
+        assert controller.program.accepted > 40  # the goal at 50 Hz, downloaded as one trajectory
+        session.run(2.5)
+        assert handle.status is GoalStatus.SUCCEEDED, handle.result
+        assert joint1(controller) == pytest.approx(-0.3, abs=0.01)
+        assert controller.program.refused == 0
+    finally:
+        hw.close()
+
+
+def test_an_unknown_motion_handshake_is_refused() -> None:
+    with pytest.raises(JointCtlError) as info:
+        IndustrialHardware(["joint1"], robot_ip="127.0.0.1", motion="upload")
+    assert info.value.field == "motion" and info.value.value == "upload"

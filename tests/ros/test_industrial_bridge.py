@@ -176,3 +176,15 @@ def test_the_controller_and_the_ros_side_on_two_hosts(hosts, tmp_path) -> None: 
         for process in reversed(processes):
             logs[process.pid] = stop(process) if process.poll() is None else ""
     assert f"motion client {ADDR_B}:" in logs[controller.pid]  # the client came from the other host
+
+
+def test_goals_downloaded_whole_with_motion_download(ros_env, serve, controllers) -> None:
+    process, motion, state = controllers(ros_env, "one_dof")
+    serve_against(serve, "one_dof", motion, state, "--motion", "download")
+    done = follow(ros_env, ["joint1"], [[1.0, [-0.4]], [2.0, [-0.3]]])
+    assert done["state"] == "SUCCEEDED", done
+    assert positions(ros_env)[0] == pytest.approx(-0.3, abs=0.01)
+    done = follow(ros_env, ["joint1"], [[4.0, [-0.1]]], "--cancel-after", "1.5")
+    assert done["state"] == "PREEMPTED", done
+    log = stop(process)
+    assert "STOP: decelerating to rest" in log and "refused" not in log

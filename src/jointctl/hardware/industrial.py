@@ -18,7 +18,9 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   starts with the robot at rest (STATUS ``in_motion`` 0, nothing streamed at the last tick)
   begins with sequence number 0, which tells the controller a new trajectory begins; every other
   point continues the numbering, so the controller queues it behind the ones it has.
-  :meth:`stop_motion` sends STOP (-4); ``fault`` then says "stopping" until the controller has
+  With ``motion="download"`` nothing is streamed: a trajectory executor hands each goal to
+  :meth:`download_motion`, sent in ROS-I's download handshake (TOPIC points from sequence -1 to -3;
+  the controller executes after the last). :meth:`stop_motion` sends STOP (-4); ``fault`` then says "stopping" until the controller has
   answered and reports the robot at rest.
 - **Faults**: ``fault`` says why the robot cannot be commanded now (``None`` when it can): the
   state stale for ``stale_after_s`` (ROS-I's action server aborts after 1 s without feedback), or
@@ -44,7 +46,9 @@ from collections.abc import Sequence
 from jointctl.errors import JointCtlError, MalformedPacket
 from jointctl.hardware.interface import POSITION, HardwareInterface
 from jointctl.industrial.simple_message import (
+    END_TRAJECTORY,
     MAX_JOINTS,
+    START_TRAJECTORY_DOWNLOAD,
     STOP_TRAJECTORY,
     TRISTATE_TRUE,
     CommType,
@@ -59,6 +63,8 @@ from jointctl.industrial.simple_message import (
 
 MOTION_PORT = 11000
 STATE_PORT = 11002
+#: The motion handshakes of ROS-I's motion interfaces.
+MOTION_HANDSHAKES = ("streaming", "download")
 
 
 class HardwareUnreachable(JointCtlError):
@@ -72,11 +78,18 @@ class IndustrialHardware(HardwareInterface):
 
     def __init__(self, joint_names: Sequence[str], *, robot_ip: str, motion_port: int = MOTION_PORT,
                  state_port: int = STATE_PORT, big_endian: bool = False, stream_rate_hz: float = 50.0,
-                 stale_after_s: float = 1.0, connect_timeout_s: float = 2.0, retry_s: float = 0.5) -> None:
+                 stale_after_s: float = 1.0, connect_timeout_s: float = 2.0, retry_s: float = 0.5,
+                 motion: str = "streaming") -> None:
         super().__init__(tuple(joint_names))
         if not 0 < len(self.joint_names) <= MAX_JOINTS:
             raise JointCtlError(f"simple_message carries 1 to {MAX_JOINTS} joints", field="joints",
                                 value=list(self.joint_names))
+        if motion not in MOTION_HANDSHAKES:
+            raise JointCtlError(f"must be one of {', '.join(MOTION_HANDSHAKES)}", field="motion", value=motion)
+        #: The motion handshake: "streaming" (points streamed as the loop runs) or "download" (whole
+        #: trajectories, from a trajectory executor's goals, executed by the controller after their end).
+        self.motion = motion
+        self.takes_trajectories = motion == "download"
         if not stream_rate_hz > 0:
             raise JointCtlError("must be positive", field="stream_rate_hz", value=stream_rate_hz)
         self.robot_ip = robot_ip
@@ -225,7 +238,10 @@ class IndustrialHardware(HardwareInterface):
             if item is None or self._closing.is_set():
                 return
             try:
-                self._request(item)
+                if isinstance(item, tuple):  # (TOPIC, point): sent, no reply to wait for
+                    self._motion.sendall(encode(item[1], item[0], big_endian=self.big_endian))
+                else:
+                    self._request(item)
             except (OSError, ConnectionError, MalformedPacket) as exc:
                 if self._closing.is_set():
                     return
@@ -317,7 +333,32 @@ class IndustrialHardware(HardwareInterface):
         if not refused:
             self._refusal_reported = False
 
+    def download_motion(self, joint_indices: Sequence[int], times_s: Sequence[float],
+                        positions: Sequence[Sequence[float]]) -> None:
+        """Send a trajectory in ROS-I's download handshake: every point as a TOPIC, the first with
+        sequence -1 (START_TRAJECTORY_DOWNLOAD), the last -3 (END_TRAJECTORY), a one-point
+        trajectory twice; each point's ``duration`` is the time since the previous one. Joints not
+        in ``joint_indices`` keep their last position command."""
+        base = list(self.command_buffer(POSITION))
+        points = []
+        for k, (t, row) in enumerate(zip(times_s, positions)):
+            full = list(base)
+            for i, q in zip(joint_indices, row):
+                full[i] = float(q)
+            duration = float(t - times_s[k - 1]) if k else 0.0
+            points.append((tuple(full) + (0.0,) * (MAX_JOINTS - len(full)), duration))
+        if len(points) == 1:
+            points.append(points[0])
+        last = len(points) - 1
+        self._drop_outbox()
+        for k, (q, duration) in enumerate(points):
+            seq = START_TRAJECTORY_DOWNLOAD if k == 0 else END_TRAJECTORY if k == last else k
+            self._outbox.put((CommType.TOPIC, JointTrajPt(seq, q, 0.0, duration)))
+        self._last_sent = list(points[-1][0][: len(self.joint_names)])
+
     def write(self) -> None:
+        if self.takes_trajectories:
+            return  # the controller executes downloaded trajectories; nothing is streamed
         if self._time_s + 1e-9 < self._next_stream_s:
             return
         self._next_stream_s += self.stream_period_s
@@ -346,4 +387,4 @@ class IndustrialHardware(HardwareInterface):
         return self._state_reports
 
 
-__all__ = ["MOTION_PORT", "STATE_PORT", "HardwareUnreachable", "IndustrialHardware"]
+__all__ = ["MOTION_HANDSHAKES", "MOTION_PORT", "STATE_PORT", "HardwareUnreachable", "IndustrialHardware"]

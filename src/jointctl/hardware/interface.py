@@ -18,6 +18,7 @@ order; callers resolve names to indices once, with :meth:`joint_index`.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 
 from jointctl.errors import ConfigError
 
@@ -153,6 +154,17 @@ class HardwareInterface(ABC):
     @abstractmethod
     def advance(self, period_s: float) -> None:
         """Let ``period_s`` seconds of hardware time pass."""
+
+    #: True for hardware that executes whole trajectories itself (an industrial controller's download
+    #: handshake): a trajectory executor hands it each goal through :meth:`download_motion`.
+    takes_trajectories: bool = False
+
+    def download_motion(self, joint_indices: Sequence[int], times_s: Sequence[float],
+                        positions: Sequence[Sequence[float]]) -> None:
+        """Execute a trajectory by the hardware's own means: ``positions[k]`` [rad or m] of the joints
+        ``joint_indices`` at ``times_s[k]`` [s] from now (increasing, the first 0: where the motion
+        starts). Only hardware with ``takes_trajectories`` implements it."""
+        raise NotImplementedError(f"{type(self).__name__} does not take whole trajectories")
 
     def stop_motion(self) -> None:
         """Bring the joints to rest by the hardware's own means, for a canceled or aborted motion.

@@ -50,6 +50,15 @@ class HardwareLoan:
                               source=self._source, field=self.borrower, value=interface)
         return self._hardware.command_buffer(interface)
 
+    @property
+    def takes_trajectories(self) -> bool:
+        """Whether the hardware executes whole trajectories (see ``HardwareInterface.download_motion``)."""
+        return self._hardware.takes_trajectories
+
+    def download_motion(self, joint_indices, times_s, positions) -> None:
+        """Execute a trajectory by the hardware's own means (see ``HardwareInterface.download_motion``)."""
+        self._hardware.download_motion(joint_indices, times_s, positions)
+
     def stop_motion(self) -> None:
         """Bring the joints to rest by the hardware's own means (see ``HardwareInterface.stop_motion``)."""
         self._hardware.stop_motion()

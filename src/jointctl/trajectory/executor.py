@@ -60,6 +60,10 @@ __all__ = ["BLOCK_CYCLES", "INTERPOLATIONS", "GoalHandle", "GoalResult", "GoalSt
            "TrajectoryFeedback"]
 
 
+#: The spacing of a goal's points handed to hardware that takes whole trajectories, when the executor
+#: has no ``stream_rate_hz`` [s].
+DOWNLOAD_PERIOD_S = 0.02
+
 class TrajectoryExecutor(Controller):
     """Interpolates goals into references for one position controller per joint."""
 
@@ -415,6 +419,20 @@ class TrajectoryExecutor(Controller):
         self._next_stream_s = time_s
         self._next_feedback_s = time_s
         self._supervise_at = time_s
+        if not self.downstream and self.hardware.takes_trajectories:
+            self._download(handle, time_s, period_s)
+
+    def _download(self, handle: GoalHandle, time_s: float, period_s: float) -> None:
+        """Hand the goal, as planned from this cycle, to hardware that executes whole trajectories: its
+        positions every stream period (``stream_rate_hz``, else 50 Hz) and at the end. The executor
+        runs its own copy of the plan as usual, for feedback, tolerances and the result."""
+        plan = Plan.splice(handle.validated, self._state(), time_s - period_s, time_s,
+                           interpolation=self.interpolation, stop_deceleration=self.stop_deceleration)
+        step = self._stream_period_s or DOWNLOAD_PERIOD_S
+        count = max(1, math.ceil((plan.end_s - time_s) / step - 1e-9))
+        times = [time_s + k * step for k in range(count)] + [plan.end_s]
+        positions = [plan.at(t, step)[0::3] for t in times]
+        self.hardware.download_motion(self.hw_index, [t - time_s for t in times], positions)
 
     def _take_stream(self, time_s: float) -> None:
         with self._lock:
