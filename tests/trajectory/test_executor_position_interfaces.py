@@ -200,3 +200,31 @@ def test_a_path_tolerance_abort_stops_the_hardware_too(arm, write_yaml) -> None:
     loop.run(cycles=1)
     assert handle.status is GoalStatus.ABORTED and "joint3" in handle.result.error_string
     assert hw.stop_calls == 1
+
+
+def test_a_goal_succeeds_only_once_the_hardware_says_the_robot_is_at_rest(arm, write_yaml) -> None:
+    hw = servoed(0.2)
+    manager = manager_of(hw, arm, write_yaml, goal_time_s=1.0)
+    executor = manager.load(TRAJ)
+    manager.start([TRAJ])
+    loop = ControlLoop(hw, manager)
+    handle = executor.submit(goal([0.4] * 7, 2.0), now_s=0.0)
+    hw.in_motion = True  # e.g. an industrial controller's STATUS while its servos settle
+    loop.run(2.5)
+    assert handle.status is GoalStatus.ACTIVE  # within tolerance, but the controller says it moves
+    hw.in_motion = False
+    loop.run(cycles=2)
+    assert handle.status is GoalStatus.SUCCEEDED
+
+
+def test_a_robot_reported_in_motion_for_ever_ends_the_goal_aborted_saying_so(arm, write_yaml) -> None:
+    hw = servoed(0.2)
+    manager = manager_of(hw, arm, write_yaml, goal_time_s=1.0)
+    executor = manager.load(TRAJ)
+    manager.start([TRAJ])
+    loop = ControlLoop(hw, manager)
+    handle = executor.submit(goal([0.4] * 7, 2.0), now_s=0.0)
+    hw.in_motion = True
+    loop.run(3.5)
+    assert handle.status is GoalStatus.ABORTED
+    assert handle.result.error_string == "the hardware still reports the robot in motion 1.0 s after the end"

@@ -8,7 +8,9 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   and STATUS packets as TOPIC. A reader thread keeps the latest; :meth:`read` copies it into the
   state handles: ``position`` [rad or m] as reported, ``velocity`` [rad/s or m/s] differenced
   between the last two reports (JOINT_POSITION carries no velocity), ``effort`` zero (not
-  reported). ``status`` is the last STATUS (``in_motion``, ``in_error``...).
+  reported). ``status`` is the last STATUS (``in_motion``, ``in_error``...); ``in_motion`` its
+  ``in_motion`` as a bool (None when unknown): a goal succeeds only once the controller says the
+  robot is not in motion, as ROS-I's action server requires.
 - **Commands**: each joint has a ``position`` command interface only (the controller servos its
   joints; there is no PID on this side). :meth:`write` streams the position command on the MOTION
   port (11000) every ``1 / stream_rate_hz`` of loop time, when it changed, as a JOINT_TRAJ_PT
@@ -51,6 +53,7 @@ from jointctl.industrial.simple_message import (
     START_TRAJECTORY_DOWNLOAD,
     STOP_TRAJECTORY,
     TRISTATE_TRUE,
+    TRISTATE_UNKNOWN,
     CommType,
     JointPosition,
     JointTrajPt,
@@ -310,6 +313,8 @@ class IndustrialHardware(HardwareInterface):
             self.velocity[:] = velocity
         age = time.monotonic() - reported_at
         status = self.status
+        self.in_motion = None if status is None or status.in_motion == TRISTATE_UNKNOWN else \
+            status.in_motion == TRISTATE_TRUE
         refused = status is not None and status.in_error == TRISTATE_TRUE
         if self._stopping and self._stopped(status):
             self._stopping = False

@@ -98,6 +98,9 @@ class HardwareInterface(ABC):
     #: Why the robot cannot be commanded now (a lost connection, stale state), or None. Simulated
     #: hardware never has one; a trajectory executor aborts its goal and refuses new ones while set.
     fault: str | None = None
+    #: The hardware's own word on whether the robot moves (an industrial controller's STATUS
+    #: ``in_motion``), or None when it gives none. A trajectory goal succeeds only when it is not True.
+    in_motion: bool | None = None
 
     def __init__(self, joint_names: tuple[str, ...], sensor_names: tuple[str, ...] = ()) -> None:
         self.joint_names = tuple(joint_names)

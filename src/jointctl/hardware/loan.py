@@ -51,6 +51,11 @@ class HardwareLoan:
         return self._hardware.command_buffer(interface)
 
     @property
+    def in_motion(self) -> bool | None:
+        """The hardware's own word on whether the robot moves, or None (see ``HardwareInterface.in_motion``)."""
+        return self._hardware.in_motion
+
+    @property
     def takes_trajectories(self) -> bool:
         """Whether the hardware executes whole trajectories (see ``HardwareInterface.download_motion``)."""
         return self._hardware.takes_trajectories

@@ -475,9 +475,14 @@ class TrajectoryExecutor(Controller):
                 return
         if time_s + 1e-9 < plan.end_s:
             return
-        if goal_reached(desired, actual, self._of_joints(hw.velocity), self.goal_tolerance,
-                        self.stopped_velocity_tolerance):
+        reached = goal_reached(desired, actual, self._of_joints(hw.velocity), self.goal_tolerance,
+                               self.stopped_velocity_tolerance)
+        if reached and hw.in_motion is not True:  # and the hardware, if it says, says at rest
             self.goals.end(GoalStatus.SUCCEEDED, TrajectoryErrorCode.SUCCESSFUL, "", time_s)
+        elif reached and time_s > plan.end_s + self.goal_time_s:
+            self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.GOAL_TOLERANCE_VIOLATED,
+                           f"the hardware still reports the robot in motion {self.goal_time_s} s after the end",
+                           time_s)
         elif time_s > plan.end_s + self.goal_time_s:
             worst = worst_joint(desired, actual)
             self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.GOAL_TOLERANCE_VIOLATED,
