@@ -126,6 +126,14 @@ def test_a_hardware_fault_aborts_the_goal_refuses_new_ones_and_holds(arm, write_
     assert hw.sent[-1] == pytest.approx([0.3] * 7, abs=1e-12)
 
 
+def running(hardware, arm, write_yaml, **changes):
+    """The executor started on ``hardware`` and a loop to run it: (executor, loop)."""
+    manager = manager_of(hardware, arm, write_yaml, **changes)
+    executor = manager.load(TRAJ)
+    manager.start([TRAJ])
+    return executor, ControlLoop(hardware, manager)
+
+
 class StoppingHardware(ServoedHardware):
     """Servoed joints that, on stop_motion, coast on by themselves for ``stop_cycles`` cycles (an
     industrial controller braking at its own limits) and report a fault meanwhile."""
@@ -157,10 +165,7 @@ class StoppingHardware(ServoedHardware):
 
 def test_a_cancel_stops_the_hardware_and_the_reference_follows_it_to_rest(arm, write_yaml) -> None:
     hw = StoppingHardware(JOINTS, [0.2] * 7)
-    manager = manager_of(hw, arm, write_yaml)
-    executor = manager.load(TRAJ)
-    manager.start([TRAJ])
-    loop = ControlLoop(hw, manager)
+    executor, loop = running(hw, arm, write_yaml)
     handle = executor.submit(goal([0.6] * 7, 3.0), now_s=0.0)
     loop.run(1.0)
     assert hw.stop_calls == 0
@@ -179,10 +184,7 @@ def test_a_cancel_stops_the_hardware_and_the_reference_follows_it_to_rest(arm, w
 
 def test_without_a_cancel_the_hardware_is_never_asked_to_stop(arm, write_yaml) -> None:
     hw = StoppingHardware(JOINTS, [0.2] * 7)
-    manager = manager_of(hw, arm, write_yaml)
-    executor = manager.load(TRAJ)
-    manager.start([TRAJ])
-    loop = ControlLoop(hw, manager)
+    executor, loop = running(hw, arm, write_yaml)
     handle = executor.submit(goal([0.6] * 7, 3.0), now_s=0.0)
     loop.run(4.0)
     assert handle.status is GoalStatus.SUCCEEDED and hw.stop_calls == 0
@@ -190,10 +192,7 @@ def test_without_a_cancel_the_hardware_is_never_asked_to_stop(arm, write_yaml) -
 
 def test_a_path_tolerance_abort_stops_the_hardware_too(arm, write_yaml) -> None:
     hw = StoppingHardware(JOINTS, [0.2] * 7)
-    manager = manager_of(hw, arm, write_yaml, path_tolerance=0.05)
-    executor = manager.load(TRAJ)
-    manager.start([TRAJ])
-    loop = ControlLoop(hw, manager)
+    executor, loop = running(hw, arm, write_yaml, path_tolerance=0.05)
     handle = executor.submit(goal([0.6] * 7, 3.0), now_s=0.0)
     loop.run(1.0)
     hw.position[3] += 0.2  # joint3 knocked off its path
@@ -204,10 +203,7 @@ def test_a_path_tolerance_abort_stops_the_hardware_too(arm, write_yaml) -> None:
 
 def test_a_goal_succeeds_only_once_the_hardware_says_the_robot_is_at_rest(arm, write_yaml) -> None:
     hw = servoed(0.2)
-    manager = manager_of(hw, arm, write_yaml, goal_time_s=1.0)
-    executor = manager.load(TRAJ)
-    manager.start([TRAJ])
-    loop = ControlLoop(hw, manager)
+    executor, loop = running(hw, arm, write_yaml, goal_time_s=1.0)
     handle = executor.submit(goal([0.4] * 7, 2.0), now_s=0.0)
     hw.in_motion = True  # e.g. an industrial controller's STATUS while its servos settle
     loop.run(2.5)
@@ -219,10 +215,7 @@ def test_a_goal_succeeds_only_once_the_hardware_says_the_robot_is_at_rest(arm, w
 
 def test_a_robot_reported_in_motion_for_ever_ends_the_goal_aborted_saying_so(arm, write_yaml) -> None:
     hw = servoed(0.2)
-    manager = manager_of(hw, arm, write_yaml, goal_time_s=1.0)
-    executor = manager.load(TRAJ)
-    manager.start([TRAJ])
-    loop = ControlLoop(hw, manager)
+    executor, loop = running(hw, arm, write_yaml, goal_time_s=1.0)
     handle = executor.submit(goal([0.4] * 7, 2.0), now_s=0.0)
     hw.in_motion = True
     loop.run(3.5)
