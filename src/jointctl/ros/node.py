@@ -61,8 +61,8 @@ from jointctl.scenario.session import Session
 from jointctl.trajectory.executor import TrajectoryExecutor
 
 MASTER_TIMEOUT_S = 10.0
-MASTER_CHECK_S = 1.0
-SWITCH_INTERVAL_S = 2e-4  # GIL hand-over interval while serving [s]  # how often the node checks that its master is still the one it registered with
+MASTER_CHECK_S = 1.0  # how often the node checks that its master is still the one it registered with [s]
+SWITCH_INTERVAL_S = 2e-4  # GIL hand-over interval while serving [s]
 
 
 class LoopClock:
