@@ -167,3 +167,25 @@ def test_controller_says_where_it_listens_and_stops_cleanly_on_sigterm():
         process.terminate()
         _, err = process.communicate(timeout=10)
     assert process.returncode == 0, err
+
+
+def test_identify_writes_metrics_and_reads_its_own_trace_back(tmp_path):
+    result = jointctl("identify", "one_dof", "--joint", "joint1", "--duration-s", "6", "--out", tmp_path / "a")
+    assert result.returncode == 0, result.stderr
+    metrics = json.loads((tmp_path / "a" / "metrics.json").read_text())
+    assert metrics["mass_kg"] == pytest.approx(1.01, rel=0.02)
+    again = jointctl("identify", tmp_path / "a" / "trace.csv", "--joint", "joint1", "--robot", "one_dof",
+                     "--out", tmp_path / "b")
+    assert again.returncode == 0, again.stderr
+    assert json.loads((tmp_path / "b" / "metrics.json").read_text())["mass_kg"] == pytest.approx(metrics["mass_kg"])
+
+
+@pytest.mark.parametrize("args, fragments", [
+    (["one_dof", "--joint", "joint1", "--amplitude", "1"], ["amplitude", "at most 0.15", "1.0"]),
+    (["one_dof", "--joint", "joint7"], ["--joint", "joint7"]),
+    (["one_dof", "--joint", "joint1", "--controllers", "velocity"], ["JointPositionController"]),
+    (["trace.csv", "--joint", "joint1"], ["--joint-type"]),
+])
+def test_identify_refuses_bad_input_in_one_line(args, fragments, tmp_path):
+    assert_one_line_error(jointctl("identify", *args, "--out", tmp_path / "o"), *fragments)
+    assert not (tmp_path / "o" / "metrics.json").exists()

@@ -11,6 +11,7 @@
     jointctl traj-client [--seed N] [--server S]    the chapter's example trajectory action client
     jointctl tune ROBOT --controllers NAME [--port P]  the tuning page: live plots, gains, sources
     jointctl controller ROBOT [--motion-port P]     a simulated industrial controller (simple_message)
+    jointctl identify ROBOT|TRACE --joint J [--out DIR]  fit a joint's inertia, damping, friction, gravity
 
 Every error a user can cause is printed as one line naming the file, field
 and value, with exit status 2.
@@ -111,6 +112,24 @@ def _parser() -> argparse.ArgumentParser:
     controller.add_argument("--big-endian", action="store_true", help="speak big-endian (for the _bswap drivers)")
     controller.add_argument("--state-rate-hz", type=float, default=50.0,
                             help="joint state and status reports per second (default 50)")
+    identify = sub.add_parser("identify", help="excite a joint (or read a recorded trace.csv) and fit its inertia, "
+                                               "damping, Coulomb friction and gravity load")
+    identify.add_argument("target", help="a built-in robot, a scenario YAML / name, or a trace.csv")
+    identify.add_argument("--joint", required=True, help="the joint to identify")
+    identify.add_argument("--controllers", default="position",
+                          help="with a robot: the controller file whose position controller excites the joint "
+                               "(default position)")
+    identify.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                          help="override a scenario field, e.g. initial_positions.joint1=-0.3 (repeatable)")
+    identify.add_argument("--joint-type", choices=("prismatic", "revolute", "continuous"),
+                          help="with a trace: the joint's type (default: read from --robot)")
+    identify.add_argument("--robot", help="with a trace: the built-in robot it was recorded on")
+    identify.add_argument("--amplitude", type=float, help="excitation amplitude [m or rad] (default: the safe one)")
+    identify.add_argument("--duration-s", type=float, default=10.0, help="excitation length [s] (default 10)")
+    identify.add_argument("--f-start-hz", type=float, default=0.2, help="chirp start frequency (default 0.2 Hz)")
+    identify.add_argument("--f-end-hz", type=float, default=3.0, help="chirp end frequency (default 3 Hz)")
+    identify.add_argument("--no-friction", action="store_true", help="fit without a Coulomb friction term")
+    identify.add_argument("--out", type=Path, default=Path("out/identify"), help="output folder")
     return parser
 
 
@@ -226,6 +245,41 @@ def _controller(args: argparse.Namespace) -> int:
     return 0
 
 
+def _identify(args: argparse.Namespace) -> int:
+    from jointctl.identification.identify import identify_on_robot, identify_trace
+    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
+
+    friction = not args.no_friction
+    if args.target.endswith(".csv"):
+        joint_type = args.joint_type or _joint_type(args.robot, args.joint)
+        _, metrics = identify_trace(args.target, args.joint, joint_type, out_dir=args.out, fit_friction=friction)
+    else:
+        scenario = (scenario_for_robot(args.target, args.controllers, args.overrides)
+                    if args.target in builtin_robots() else load_scenario(args.target, args.overrides))
+        _, metrics = identify_on_robot(scenario, args.joint, out_dir=args.out, amplitude=args.amplitude,
+                                       duration_s=args.duration_s, f_start_hz=args.f_start_hz,
+                                       f_end_hz=args.f_end_hz, fit_friction=friction)
+    print(json.dumps(metrics, indent=2))
+    print(f"wrote {args.out}/", file=sys.stderr)
+    return 0
+
+
+def _joint_type(robot: str | None, joint: str) -> str:
+    """The type of ``joint`` of built-in ``robot`` (for identifying from a trace)."""
+    from jointctl.model.loader import load_robot_model
+    from jointctl.scenario.spec import builtin_robots, read_robot_manifest
+
+    if robot is None:
+        raise JointCtlError("a trace needs --joint-type or --robot (to read the joint's type)", field="--joint-type")
+    robots = builtin_robots()
+    if robot not in robots:
+        raise JointCtlError(f"no such built-in robot (built-in: {', '.join(robots)})", field="--robot", value=robot)
+    model = load_robot_model(read_robot_manifest(robots[robot] / "robot.yaml").description)
+    if not model.has_joint(joint):
+        raise JointCtlError(f"no such joint on {robot}", field="--joint", value=joint)
+    return model.joint(joint).type
+
+
 def _industrial_hardware(args: argparse.Namespace, scenario):
     """The robot controller behind ``serve --hardware industrial``, connected (or a clear error)."""
     from jointctl.hardware.industrial import IndustrialHardware
@@ -305,7 +359,8 @@ def _tune(args: argparse.Namespace) -> int:
 
 
 _COMMANDS = {"serve": _serve, "list": _list, "run": _run, "demo": _demo, "prompt": _prompt, "play": _play,
-             "sine": _sine, "traj-client": _traj_client, "tune": _tune, "controller": _controller}
+             "sine": _sine, "traj-client": _traj_client, "tune": _tune, "controller": _controller,
+             "identify": _identify}
 
 
 if __name__ == "__main__":

@@ -1,0 +1,167 @@
+"""``jointctl identify``: excite a joint of a simulated robot (or read a recorded trace) and fit its model.
+
+On a robot, the joint's own position controller (the robot's ``position`` controller file, or
+another named one) follows a :func:`~jointctl.identification.excitation.safe_chirp` from where
+the joint rests while every other joint holds; the loop runs in simulated time. A guard watches
+the measured position: should it come within ``guard_fraction`` of the range of a limit, the
+reference returns to the start at once and the identification is refused saying where it went.
+The recorded position, velocity and applied effort are fitted by
+:func:`~jointctl.identification.plant_fit.fit_plant`.
+
+Outputs (``out_dir``): ``trace.csv`` (robot runs), ``identify_<joint>.png`` (measured effort
+against the fitted model's, and the position) and ``metrics.json``: ``mass_kg`` /
+``damping_n_s_m`` / ``friction_n`` / ``gravity_load_n`` on a prismatic joint,
+``inertia_kg_m2`` / ``damping_n_m_s_rad`` / ``friction_n_m`` / ``gravity_sin_n_m`` /
+``gravity_cos_n_m`` on a revolute one, each with ``*_ci95``, and the fit's residual.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from jointctl.control.joint_controllers import JointPositionController
+from jointctl.errors import ConfigError
+from jointctl.identification.excitation import Chirp, safe_chirp
+from jointctl.identification.plant_fit import IdentificationError, PlantFit, fit_plant
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import Scenario
+from jointctl.tools.figures import plot_series
+from jointctl.tools.recorder import load_trace
+
+#: Rest before the excitation, for the joint to settle where its controller holds it [s].
+SETTLE_S = 1.0
+#: Rest after it, for the joint to come to rest again [s].
+SETTLE_AFTER_S = 2.0
+#: The guard's band: this fraction of the range from each limit.
+GUARD_FRACTION = 0.05
+
+
+def identify_on_robot(scenario: Scenario, joint: str, *, out_dir: str | Path | None = None,
+                      amplitude: float | None = None, duration_s: float = 10.0, f_start_hz: float = 0.2,
+                      f_end_hz: float = 3.0, fit_friction: bool = True) -> tuple[PlantFit, dict]:
+    """Excite ``joint`` of the scenario's robot and fit it; (fit, metrics). See the module docstring."""
+    session = Session(scenario, out_dir=out_dir)
+    robot, hardware, manager = session.robot, session.hardware, session.manager
+    if not robot.has_joint(joint) or not robot.joint(joint).is_movable:
+        movable = ", ".join(j.name for j in robot.movable_joints)
+        raise ConfigError(f"no movable joint of that name (movable: {movable})", field="--joint", value=joint)
+    controller = manager.commanding(joint)
+    if not isinstance(controller, JointPositionController):
+        raise ConfigError("the joint needs a started effort_controllers/JointPositionController to follow the "
+                          "excitation (use a position controller file)", field="--joint", value=joint)
+    spec = robot.joint(joint)
+    index = hardware.joint_index(joint)
+    hardware.read()
+    lower, upper, vmax = _limits(spec)
+    chirp = safe_chirp(hardware.position[index], lower, upper, vmax, amplitude=amplitude, duration_s=duration_s,
+                       f_start_hz=f_start_hz, f_end_hz=f_end_hz)
+    band = GUARD_FRACTION * (upper - lower) if math.isfinite(upper - lower) else math.inf
+    samples: list[tuple[float, float, float, float]] = []
+    tripped: list[float] = []
+
+    def excite(time_s: float) -> None:
+        q = hardware.position[index]
+        if not tripped and (q < lower + band or q > upper - band):
+            tripped.append(q)
+        controller.set_reference(chirp.start if tripped else chirp(time_s - SETTLE_S))
+
+    def record(time_s: float) -> None:
+        samples.append((time_s, hardware.position[index], hardware.velocity[index], hardware.effort[index]))
+
+    session.loop.add_input(excite)
+    session.loop.add_observer(record)
+    with session:
+        session.run(SETTLE_S + duration_s + SETTLE_AFTER_S)
+    if tripped:
+        raise IdentificationError(f"the joint came within {band:.3g} of a limit of [{lower:g}, {upper:g}]: the "
+                                  "excitation was stopped and the joint returned; give a smaller --amplitude",
+                                  field="position", value=tripped[0])
+    t, q, qd, u = (np.array(column) for column in zip(*samples))
+    fit = fit_plant(t, q, qd, u, joint_type=spec.type, fit_friction=fit_friction)
+    metrics = _metrics(fit, joint)
+    metrics["excitation"] = {"amplitude": chirp.amplitude, "f_start_hz": chirp.f_start_hz,
+                             "f_end_hz": chirp.f_end_hz, "duration_s": chirp.duration_s, "start": chirp.start,
+                             "position_min": float(q.min()), "position_max": float(q.max()),
+                             "rest_before": float(q[t <= SETTLE_S][-1]), "rest_after": float(q[-1]),
+                             "lower": lower, "upper": upper}
+    if out_dir is not None:
+        _write(out_dir, joint, fit, metrics, t, q, qd, u)
+    return fit, metrics
+
+
+def identify_trace(path: str | Path, joint: str, joint_type: str, *, out_dir: str | Path | None = None,
+                   fit_friction: bool = True) -> tuple[PlantFit, dict]:
+    """Fit ``joint`` from a recorded ``trace.csv`` (every cycle recorded); (fit, metrics)."""
+    path = Path(path)
+    try:
+        trace = load_trace(path)
+    except (OSError, ValueError, StopIteration) as exc:
+        raise ConfigError(f"cannot read the trace ({exc})", source=str(path)) from None
+    try:
+        t, q, qd, u = (trace.joint(joint, quantity) if quantity else trace.time_s
+                       for quantity in (None, "position", "velocity", "effort"))
+    except KeyError:
+        raise ConfigError("no columns for that joint in the trace", source=str(path), field="--joint",
+                          value=joint) from None
+    fit = fit_plant(t, q, qd, u, joint_type=joint_type, fit_friction=fit_friction)
+    metrics = _metrics(fit, joint)
+    metrics["trace"] = str(path)
+    if out_dir is not None:
+        _write(out_dir, joint, fit, metrics, t, q, qd, u)
+    return fit, metrics
+
+
+def _limits(spec) -> tuple[float, float, float]:
+    lim = spec.limits
+    lower = lim.lower if lim is not None and lim.lower is not None else -math.inf
+    upper = lim.upper if lim is not None and lim.upper is not None else math.inf
+    if spec.type == "continuous":
+        lower, upper = -math.inf, math.inf
+    vmax = lim.velocity if lim is not None and lim.velocity > 0 else math.inf
+    return float(lower), float(upper), float(vmax)
+
+
+def _metrics(fit: PlantFit, joint: str) -> dict:
+    prismatic = fit.joint_type == "prismatic"
+    unit = {"inertia": "mass_kg" if prismatic else "inertia_kg_m2",
+            "damping": "damping_n_s_m" if prismatic else "damping_n_m_s_rad",
+            "friction": "friction_n" if prismatic else "friction_n_m"}
+    metrics: dict = {"joint": joint, "joint_type": fit.joint_type}
+    for name, key in unit.items():
+        metrics[key] = getattr(fit, name)
+        metrics[f"{key}_ci95"] = getattr(fit, f"{name}_ci95")
+    if prismatic:
+        metrics["gravity_load_n"] = fit.gravity_load
+        metrics["gravity_load_n_ci95"] = fit.gravity_load_ci95
+    else:
+        metrics["gravity_sin_n_m"] = fit.gravity_sin
+        metrics["gravity_cos_n_m"] = fit.gravity_cos
+    metrics.update(residual_rms=fit.residual_rms, r_squared=fit.r_squared, samples=fit.samples,
+                   effort_shift_cycles=fit.effort_shift_cycles)
+    return metrics
+
+
+def _write(out_dir, joint, fit: PlantFit, metrics: dict, t, q, qd, u) -> None:
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    dt = float(np.median(np.diff(t)))
+    shift = fit.effort_shift_cycles
+    n = len(t) - 1 - shift
+    qdd = (qd[1:n + 1] - qd[:n]) / dt
+    predicted = fit.effort(q[:n], qd[:n], qdd)
+    effort_unit = "N" if fit.joint_type == "prismatic" else "N·m"
+    plot_series(out / f"identify_{joint}.png", t[:n], {"measured effort": u[shift:shift + n],
+                                                       "identified model": predicted},
+                title=f"{joint}: measured effort against the identified model (R² {fit.r_squared:.5f})",
+                ylabel=f"effort [{effort_unit}]")
+    plot_series(out / f"identify_{joint}_position.png", t, {"position": q},
+                title=f"{joint}: the excitation", ylabel="position [m]" if fit.joint_type == "prismatic"
+                else "position [rad]")
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
+
+
+__all__ = ["Chirp", "identify_on_robot", "identify_trace"]

@@ -1,0 +1,92 @@
+"""The joint model fit against data made from known parameters (exact, then with noise), and its refusals."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from jointctl.identification.plant_fit import IdentificationError, fit_plant
+
+DT = 0.001
+
+
+def motion(seconds: float = 6.0):
+    """A joint swinging with changing amplitude and frequency: position, velocity, acceleration."""
+    t = np.arange(0.0, seconds, DT)
+    q = 0.3 * np.sin(2 * np.pi * 0.7 * t) + 0.1 * np.sin(2 * np.pi * 2.3 * t + 0.4)
+    qd = np.gradient(q, DT)
+    return t, q, qd
+
+
+def forward_difference(qd):
+    return np.append((qd[1:] - qd[:-1]) / DT, 0.0)
+
+
+@pytest.mark.parametrize("joint_type", ["prismatic", "revolute"])
+def test_known_parameters_are_recovered_exactly_from_exact_data(joint_type) -> None:
+    t, q, qd = motion()
+    qdd = forward_difference(qd)
+    gravity = 9.9 if joint_type == "prismatic" else 4.0 * np.sin(q) - 2.5 * np.cos(q)
+    effort = 2.5 * qdd + 7.0 * qd + 1.5 * np.sign(qd) + gravity
+    fit = fit_plant(t, q, qd, effort, joint_type=joint_type)
+    assert fit.inertia == pytest.approx(2.5, rel=1e-9) and fit.damping == pytest.approx(7.0, rel=1e-9)
+    assert fit.friction == pytest.approx(1.5, rel=1e-9)
+    if joint_type == "prismatic":
+        assert fit.gravity_load == pytest.approx(9.9, rel=1e-9)
+    else:
+        assert (fit.gravity_sin, fit.gravity_cos) == pytest.approx((4.0, -2.5), rel=1e-9)
+    assert fit.effort_shift_cycles == 0 and fit.r_squared == pytest.approx(1.0)
+
+
+def test_an_effort_logged_a_cycle_late_is_aligned() -> None:
+    t, q, qd = motion()
+    effort = 1.0 * forward_difference(qd) + 10.0 * qd + 9.81
+    late = np.concatenate(([effort[0]], effort[:-1]))  # row k holds the effort of cycle k-1
+    fit = fit_plant(t, q, qd, late, joint_type="prismatic")
+    assert fit.effort_shift_cycles == 1 and fit.inertia == pytest.approx(1.0, rel=1e-6)
+
+
+def test_noise_widens_the_confidence_intervals_which_then_hold_the_truth() -> None:
+    rng = np.random.default_rng(7)
+    t, q, qd = motion(10.0)
+    effort = 1.0 * forward_difference(qd) + 10.0 * qd + 0.5 * np.sign(qd) + 9.81 + rng.normal(0, 0.2, t.size)
+    fit = fit_plant(t, q, qd, effort, joint_type="prismatic", max_shift_cycles=0)
+    for value, ci, truth in ((fit.inertia, fit.inertia_ci95, 1.0), (fit.damping, fit.damping_ci95, 10.0),
+                             (fit.friction, fit.friction_ci95, 0.5), (fit.gravity_load, fit.gravity_load_ci95, 9.81)):
+        assert 0 < ci < 0.1 * truth + 0.05
+        assert abs(value - truth) < 3 * ci  # the interval is honest (3 x the 95 % half-width: very safe)
+    assert fit.residual_rms == pytest.approx(0.2, rel=0.05)  # the noise we added
+
+
+def test_a_trace_without_excitation_is_refused_with_the_reason() -> None:
+    t = np.arange(0.0, 2.0, DT)
+    q = np.full_like(t, -0.5)
+    with pytest.raises(IdentificationError, match="does not move") as info:
+        fit_plant(t, q, np.zeros_like(t), np.full_like(t, 9.9), joint_type="prismatic")
+    assert info.value.field == "velocity"
+
+
+def test_a_constant_speed_cannot_separate_inertia_from_the_rest() -> None:
+    t = np.arange(0.0, 2.0, DT)
+    qd = np.full_like(t, 0.1)
+    with pytest.raises(IdentificationError, match="does not separate"):
+        fit_plant(t, -0.5 + 0.1 * t, qd, 10.0 * qd + 9.81, joint_type="prismatic")
+
+
+@pytest.mark.parametrize("change, field", [
+    (dict(joint_type="planar"), "joint_type"),
+    (dict(time_s=np.arange(0.0, 0.01, DT)), "samples"),
+    (dict(time_s=np.cumsum(np.r_[0.0, np.full(5999, DT)]) ** 1.01), "time_s"),
+    (dict(effort=np.full(6000, math.nan)), "samples"),
+])
+def test_bad_input_is_refused_naming_the_field(change, field) -> None:
+    t, q, qd = motion()
+    args = dict(time_s=t, position=q, velocity=qd, effort=qd, joint_type="prismatic") | change
+    if args["time_s"].size != t.size and field == "samples":
+        args.update(position=q[:args["time_s"].size], velocity=qd[:args["time_s"].size],
+                    effort=args["effort"][:args["time_s"].size])
+    with pytest.raises(IdentificationError) as info:
+        fit_plant(**args)
+    assert info.value.field == field
