@@ -189,3 +189,23 @@ def test_identify_writes_metrics_and_reads_its_own_trace_back(tmp_path):
 def test_identify_refuses_bad_input_in_one_line(args, fragments, tmp_path):
     assert_one_line_error(jointctl("identify", *args, "--out", tmp_path / "o"), *fragments)
     assert not (tmp_path / "o" / "metrics.json").exists()
+
+
+def test_bode_writes_its_figure_and_metrics(tmp_path):
+    result = jointctl("bode", "one_dof", "--controller", "joint1_position_controller", "--points", "6",
+                      "--out", tmp_path)
+    assert result.returncode == 0, result.stderr
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert len(metrics["gain_db"]) == 6 and metrics["model"]["mass"] == pytest.approx(1.01)
+    assert (tmp_path / "bode.png").is_file()
+
+
+@pytest.mark.parametrize("args, fragments", [
+    (["--controller", "joint9_position_controller"], ["--controller", "joint9_position_controller"]),
+    (["--controller", "joint1_position_controller", "--f-min-hz", "30"], ["--f-min-hz", "30"]),
+    (["--controller", "joint1_position_controller", "--points", "1"], ["--points", "1"]),
+    (["--controller", "joint1_position_controller", "--plant", "missing.json"], ["--plant", "missing.json"]),
+])
+def test_bode_refuses_bad_input_in_one_line(args, fragments, tmp_path):
+    assert_one_line_error(jointctl("bode", "one_dof", *args, "--out", tmp_path / "o"), *fragments)
+    assert not (tmp_path / "o" / "metrics.json").exists()

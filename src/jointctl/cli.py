@@ -12,6 +12,7 @@
     jointctl tune ROBOT --controllers NAME [--port P]  the tuning page: live plots, gains, sources
     jointctl controller ROBOT [--motion-port P]     a simulated industrial controller (simple_message)
     jointctl identify ROBOT|TRACE --joint J [--out DIR]  fit a joint's inertia, damping, friction, gravity
+    jointctl bode ROBOT --controller NAME [--out DIR]     a loop's measured frequency response and its model
 
 Every error a user can cause is printed as one line naming the file, field
 and value, with exit status 2.
@@ -130,6 +131,23 @@ def _parser() -> argparse.ArgumentParser:
     identify.add_argument("--f-end-hz", type=float, default=3.0, help="chirp end frequency (default 3 Hz)")
     identify.add_argument("--no-friction", action="store_true", help="fit without a Coulomb friction term")
     identify.add_argument("--out", type=Path, default=Path("out/identify"), help="output folder")
+
+    bode = sub.add_parser("bode", help="a joint loop's closed-loop frequency response by stepped sines, beside "
+                                       "its model; bandwidth, resonance, margins")
+    bode.add_argument("target", help="a built-in robot or a scenario YAML / name")
+    bode.add_argument("--controller", required=True, help="the joint position or velocity controller to sweep")
+    bode.add_argument("--controllers", default=None,
+                      help="with a robot: the controller file to load (default: position, or velocity for a "
+                           "velocity controller's name)")
+    bode.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                      help="override a scenario field (repeatable)")
+    bode.add_argument("--f-min-hz", type=float, default=0.5, help="lowest frequency (default 0.5 Hz)")
+    bode.add_argument("--f-max-hz", type=float, default=20.0, help="highest frequency (default 20 Hz)")
+    bode.add_argument("--points", type=int, default=20, help="frequencies, log-spaced (default 20)")
+    bode.add_argument("--amplitude", type=float, help="sine amplitude [m, rad, or per s] (default: the safe one)")
+    bode.add_argument("--plant", type=Path, help="an identification's metrics.json for the model's plant "
+                                                 "(default: the robot model's)")
+    bode.add_argument("--out", type=Path, default=Path("out/bode"), help="output folder")
     return parser
 
 
@@ -264,6 +282,37 @@ def _identify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bode(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from jointctl.identification.frequency_response import bode
+    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
+
+    if not (0 < args.f_min_hz < args.f_max_hz):
+        raise JointCtlError(f"must be positive and below --f-max-hz ({args.f_max_hz:g})", field="--f-min-hz",
+                            value=args.f_min_hz)
+    if not 2 <= args.points <= 200:
+        raise JointCtlError("must be 2 to 200", field="--points", value=args.points)
+    plant = None
+    if args.plant is not None:
+        try:
+            plant = json.loads(args.plant.read_text())
+        except (OSError, ValueError) as exc:
+            raise JointCtlError(f"cannot read the plant ({exc})", field="--plant", value=str(args.plant)) from None
+    if args.target in builtin_robots():
+        controllers = args.controllers or ("velocity" if "velocity" in args.controller else "position")
+        scenario = scenario_for_robot(args.target, controllers, args.overrides)
+    else:
+        scenario = load_scenario(args.target, args.overrides)
+    frequencies = np.logspace(np.log10(args.f_min_hz), np.log10(args.f_max_hz), args.points)
+    result = bode(scenario, args.controller, frequencies, plant=plant, amplitude=args.amplitude, out_dir=args.out)
+    shown = {k: v for k, v in result.items() if not isinstance(v, (list, dict))}
+    shown["model"] = {k: v for k, v in result["model"].items() if not isinstance(v, list)}
+    print(json.dumps(shown, indent=2, default=float))
+    print(f"wrote {args.out}/", file=sys.stderr)
+    return 0
+
+
 def _joint_type(robot: str | None, joint: str) -> str:
     """The type of ``joint`` of built-in ``robot`` (for identifying from a trace)."""
     from jointctl.model.loader import load_robot_model
@@ -360,7 +409,7 @@ def _tune(args: argparse.Namespace) -> int:
 
 _COMMANDS = {"serve": _serve, "list": _list, "run": _run, "demo": _demo, "prompt": _prompt, "play": _play,
              "sine": _sine, "traj-client": _traj_client, "tune": _tune, "controller": _controller,
-             "identify": _identify}
+             "identify": _identify, "bode": _bode}
 
 
 if __name__ == "__main__":

@@ -1,0 +1,310 @@
+"""``jointctl bode``: a joint's closed-loop frequency response, measured by stepped sines, against its model.
+
+**Measured.** The joint's controller (a position loop, ``effort_controllers/JointPositionController``,
+or a velocity loop, ``JointVelocityController``) follows a sine around where it rests, one
+frequency after the other (``frequencies_hz``, log-spaced by default), each held until the
+transient has died (``settle_s`` and at least two periods) and then measured over whole periods
+(at least ``measure_periods`` and ``measure_s``): gain and phase of the response at the reference's
+frequency by a least-squares sine fit (:func:`jointctl.tools.response_analysis.sinusoid_response`).
+The reference is position only (velocity reference 0), as the chapter's command topic gives it:
+the PID's derivative acts on the measured speed. Simulated time; the amplitude keeps the joint
+inside its range (a third of the room to the nearer limit for a position loop; for a velocity loop
+the swing ``A/ω`` at the lowest frequency as well).
+
+**Model.** The joint as a mass (or inertia) ``m`` with viscous damping ``b`` (the identified plant,
+or the URDF's mass and damping), driven by the controller as configured (``p``, ``i``, ``d`` of its
+YAML) at the loop period ``h`` with the effort held over each period: python-control discretises
+the plant (zero-order hold, states position and speed) and closes the sampled loop
+``u = p·e + i·h·Σe - d·q̇`` (position) or ``u = p·e_v + i·h·Σe_v`` (velocity). Its curve is drawn
+beside the measurement, and its loop transfer function gives the gain and phase margins.
+
+**Figures of merit** (``metrics.json``): per frequency, gain [dB] and phase [deg] measured and
+modelled; the magnitude peak (resonance) and its frequency; the -3 dB bandwidth; the frequency
+where the measured phase crosses -90° (a position loop: the natural frequency, shifted by the
+hold's ``ω·h/2``); the model's gain and phase margins.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
+from jointctl.errors import ConfigError
+from jointctl.identification.plant_fit import IdentificationError
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import Scenario
+from jointctl.tools.response_analysis import sinusoid_response
+
+
+@dataclass(frozen=True)
+class LoopModel:
+    """The sampled loop of the module docstring: plant ``mass`` [kg or kg·m²] and ``damping``
+    [N·s/m or N·m·s/rad], gains ``p``, ``i``, ``d``, loop ``period_s``, ``loop`` "position" or "velocity"."""
+
+    mass: float
+    damping: float
+    p: float
+    i: float
+    d: float
+    period_s: float
+    loop: str = "position"
+
+    def _systems(self):
+        import control
+
+        h = self.period_s
+        plant = control.ss([[0.0, 1.0], [0.0, -self.damping / self.mass]], [[0.0], [1.0 / self.mass]],
+                           [[1.0, 0.0], [0.0, 1.0]], [[0.0], [0.0]])
+        discrete = control.c2d(plant, h, method="zoh")
+        z = control.tf([1.0, 0.0], [1.0], h)
+        integral = self.i * h * z / (z - 1) if self.i else 0 * z
+        pos = control.ss2tf(discrete[0, 0])
+        vel = control.ss2tf(discrete[1, 0])
+        if self.loop == "position":
+            # u = (p + I(z))·(r - q) - d·q̇: the loop broken at the plant input.
+            loop = (self.p + integral) * pos + self.d * vel
+            closed = control.minreal((self.p + integral) * pos / (1 + loop), verbose=False)
+        else:
+            loop = (self.p + integral) * vel
+            closed = control.minreal(loop / (1 + loop), verbose=False)
+        return loop, closed
+
+    def response(self, frequencies_hz) -> tuple[np.ndarray, np.ndarray]:
+        """Closed-loop gain [dB] and phase [deg] at ``frequencies_hz``."""
+        _, closed = self._systems()
+        w = 2 * np.pi * np.asarray(frequencies_hz, dtype=float)
+        h = np.array([complex(closed(complex(math.cos(x * self.period_s), math.sin(x * self.period_s))))
+                      for x in w])
+        return 20 * np.log10(np.abs(h)), np.degrees(np.unwrap(np.angle(h)))
+
+    def margins(self) -> dict:
+        """Gain margin [dB] and phase margin [deg] of the loop, with their frequencies [Hz]."""
+        import control
+
+        loop, _ = self._systems()
+        with warnings.catch_warnings():  # its note that it falls back to the frequency-response method
+            warnings.simplefilter("ignore", UserWarning)
+            gm, pm, wcg, wcp = control.margin(loop)
+        as_db = 20 * math.log10(gm) if gm and math.isfinite(gm) else math.inf
+        return {"gain_margin_db": as_db, "gain_crossover_hz": _hz(wcp), "phase_margin_deg": float(pm),
+                "phase_crossover_hz": _hz(wcg)}
+
+
+def _hz(w) -> float:
+    return float(w) / (2 * math.pi) if w is not None and math.isfinite(w) else math.nan
+
+
+@dataclass(frozen=True)
+class Point:
+    frequency_hz: float
+    gain_db: float
+    phase_deg: float
+
+
+def measure(scenario: Scenario, controller_name: str, frequencies_hz, *, amplitude: float | None = None,
+            settle_s: float = 1.5, measure_periods: int = 4, measure_s: float = 1.0) -> tuple[list[Point], dict]:
+    """Stepped-sine measurement of ``controller_name``'s closed loop (see the module docstring);
+    (points, context) where context holds the loop, joint, amplitude and simulated time."""
+    frequencies = [float(f) for f in frequencies_hz]
+    session = Session(scenario)
+    manager, hardware, robot = session.manager, session.hardware, session.robot
+    try:
+        controller = manager.controller(controller_name)
+    except Exception:
+        raise ConfigError(f"no such controller (started: {', '.join(c.name for c in manager.active)})",
+                          field="--controller", value=controller_name) from None
+    if isinstance(controller, JointPositionController):
+        loop = "position"
+    elif isinstance(controller, JointVelocityController):
+        loop = "velocity"
+    else:
+        raise ConfigError("must be an effort position or velocity controller", field="--controller",
+                          value=controller_name)
+    period = session.loop.period_s
+    nyquist = 0.5 / period
+    if not frequencies or min(frequencies) <= 0 or max(frequencies) >= nyquist:
+        raise IdentificationError(f"frequencies must be positive and below the loop's Nyquist {nyquist:g} Hz",
+                                  field="frequencies_hz", value=frequencies)
+    joint = controller.joint
+    index = hardware.joint_index(joint)
+    hardware.read()
+    rest = hardware.position[index]
+    spec = robot.joint(joint)
+    lim = spec.limits
+    lower = lim.lower if lim is not None and lim.lower is not None and spec.type != "continuous" else -math.inf
+    upper = lim.upper if lim is not None and lim.upper is not None and spec.type != "continuous" else math.inf
+    room = min(rest - lower, upper - rest)
+    room = 1.0 if math.isinf(room) else room
+    safe = room / 3 if loop == "position" else room / 3 * 2 * math.pi * min(frequencies)
+    if amplitude is None:
+        amplitude = safe
+    elif not 0 < amplitude <= safe:
+        raise IdentificationError(f"must be positive and at most {safe:.4g} (a third of the room to the nearer limit)",
+                                  field="amplitude", value=amplitude)
+    # One schedule: each frequency's sine from its start time, settling then measuring whole periods.
+    schedule = []
+    t0 = 0.5
+    for f in frequencies:
+        settle = max(settle_s, 2.0 / f)
+        span = math.ceil(max(measure_periods, measure_s * f)) / f
+        schedule.append((f, t0, t0 + settle, t0 + settle + span))
+        t0 += settle + span
+    times, references, responses = [], [], []
+    state = {"k": 0}
+    offset = rest if loop == "position" else 0.0
+
+    def reference_at(time_s: float) -> float:
+        k = state["k"]
+        while k < len(schedule) and time_s >= schedule[k][3]:
+            k += 1
+        state["k"] = k
+        if k >= len(schedule) or time_s < schedule[k][1]:
+            return offset
+        f, start = schedule[k][0], schedule[k][1]
+        return offset + amplitude * math.sin(2 * math.pi * f * (time_s - start))
+
+    measured = hardware.position if loop == "position" else hardware.velocity
+
+    def drive(time_s: float) -> None:
+        controller.set_reference(reference_at(time_s))
+
+    def record(time_s: float) -> None:
+        times.append(time_s)
+        references.append(reference_at(time_s))
+        responses.append(measured[index])
+
+    session.loop.add_input(drive)
+    session.loop.add_observer(record)
+    with session:
+        session.run(t0 + 0.1)
+    # Reference and response at the same loop time: the response measured at the start of a cycle,
+    # the reference that cycle's (held over the period that follows).
+    t, r, y = np.array(times), np.array(references), np.array(responses)
+    points = []
+    for f, start, measure_from, end in schedule:
+        window = (t >= start) & (t < end)
+        fit = sinusoid_response(t[window] - start, r[window], y[window], frequency_hz=f,
+                                start_s=measure_from - start)
+        points.append(Point(f, 20 * math.log10(fit.amplitude_ratio), -fit.phase_lag_deg))
+    context = {"loop": loop, "joint": joint, "amplitude": amplitude, "rest": rest, "simulated_s": t0,
+               "period_s": period, "gains": {"p": controller.pid.gains.p, "i": controller.pid.gains.i,
+                                             "d": controller.pid.gains.d}}
+    return points, context
+
+
+def bode(scenario: Scenario, controller_name: str, frequencies_hz, *, plant: dict | None = None,
+         amplitude: float | None = None, out_dir: str | Path | None = None) -> dict:
+    """Measure ``controller_name``'s closed loop at ``frequencies_hz`` and set it beside its model:
+    the plant from ``plant`` (an identification's metrics: ``mass_kg``/``inertia_kg_m2`` and
+    ``damping_*``) or else from the robot model (the joint's mass-matrix entry at the rest pose,
+    armature included, and its URDF damping). Writes ``bode.png`` and ``metrics.json`` to
+    ``out_dir`` when given; returns the metrics."""
+    points, context = measure(scenario, controller_name, frequencies_hz, amplitude=amplitude)
+    if plant is not None:
+        mass = plant.get("mass_kg", plant.get("inertia_kg_m2"))
+        damping = plant.get("damping_n_s_m", plant.get("damping_n_m_s_rad"))
+        if not (isinstance(mass, (int, float)) and mass > 0 and isinstance(damping, (int, float))):
+            raise IdentificationError("the plant needs mass_kg or inertia_kg_m2 (positive) and damping_n_s_m or "
+                                      "damping_n_m_s_rad, as jointctl identify writes them", field="plant",
+                                      value=plant)
+        source = "identified"
+    else:
+        mass, damping = _model_plant(scenario, context["joint"], context["rest"])
+        source = "robot model"
+    gains = context["gains"]
+    model = LoopModel(float(mass), float(damping), gains["p"], gains["i"], gains["d"], context["period_s"],
+                      context["loop"])
+    result = analyse(points, model)
+    result.update(controller=controller_name, plant_source=source, **context)
+    if out_dir is not None:
+        write_bode(out_dir, result, f"{controller_name}: closed-loop {context['loop']} response")
+    return result
+
+
+def _model_plant(scenario: Scenario, joint: str, rest: float) -> tuple[float, float]:
+    """The joint's inertia (mass-matrix diagonal at the scenario's initial pose, the joint at ``rest``)
+    and URDF damping."""
+    from jointctl.model.dynamics import RobotDynamics
+    from jointctl.model.loader import load_robot_model
+
+    robot = load_robot_model(scenario.robot.description)
+    dynamics = RobotDynamics(robot)
+    names = [j.name for j in robot.movable_joints]
+    pose = [scenario.initial_positions.get(name, 0.0) for name in names]
+    k = names.index(joint)
+    pose[k] = rest
+    dynamics.set_pose(pose)
+    return float(dynamics.mass_matrix()[k, k]), float(robot.joint(joint).damping)
+
+
+def analyse(points: list[Point], model: LoopModel | None) -> dict:
+    """Figures of merit of measured ``points`` (and the model's, when given)."""
+    f = np.array([p.frequency_hz for p in points])
+    gain = np.array([p.gain_db for p in points])
+    phase = np.unwrap(np.radians([p.phase_deg for p in points]))
+    phase = np.degrees(phase)
+    peak = int(np.argmax(gain))
+    result = {"frequencies_hz": f.tolist(), "gain_db": gain.tolist(), "phase_deg": phase.tolist(),
+              "resonance_peak_db": float(gain[peak]), "resonance_hz": float(f[peak]),
+              "bandwidth_hz": _crossing(f, gain, -3.0), "phase_minus_90_hz": _crossing(f, phase, -90.0)}
+    if model is not None:
+        model_gain, model_phase = model.response(f)
+        result["model"] = {"gain_db": model_gain.tolist(), "phase_deg": model_phase.tolist(), **model.margins(),
+                           "mass": model.mass, "damping": model.damping, "p": model.p, "i": model.i, "d": model.d}
+    return result
+
+
+def _crossing(f: np.ndarray, values: np.ndarray, level: float) -> float:
+    """The first frequency where ``values`` falls through ``level`` (log-frequency interpolation); NaN if none."""
+    below = np.nonzero(values < level)[0]
+    if below.size == 0 or below[0] == 0:
+        return math.nan
+    k = int(below[0])
+    a, b = values[k - 1], values[k]
+    s = (a - level) / (a - b)
+    return float(math.exp(math.log(f[k - 1]) + s * (math.log(f[k]) - math.log(f[k - 1]))))
+
+
+def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
+    """``bode.png`` (measured points, model curve) and ``metrics.json`` into ``out_dir``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fig, (ax_gain, ax_phase) = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
+    f = result["frequencies_hz"]
+    ax_gain.semilogx(f, result["gain_db"], "o", label="measured")
+    ax_phase.semilogx(f, result["phase_deg"], "o", label="measured")
+    if "model" in result:
+        dense = np.logspace(math.log10(min(f)), math.log10(max(f)), 400)
+        model = result["model"]
+        lm = LoopModel(model["mass"], model["damping"], model["p"], model["i"], model["d"],
+                       result["period_s"], result["loop"])
+        g, p = lm.response(dense)
+        ax_gain.semilogx(dense, g, "-", label="model (plant, gains, 1 kHz hold)")
+        ax_phase.semilogx(dense, p, "-", label="model")
+    ax_gain.set_ylabel("gain [dB]")
+    ax_phase.set_ylabel("phase [deg]")
+    ax_phase.set_xlabel("frequency [Hz]")
+    ax_gain.set_title(title)
+    for ax in (ax_gain, ax_phase):
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+    path = out / "bode.png"
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    (out / "metrics.json").write_text(json.dumps(result, indent=2, default=float))
+    return path
+
+
+__all__ = ["LoopModel", "Point", "analyse", "bode", "measure", "write_bode"]
