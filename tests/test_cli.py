@@ -209,3 +209,27 @@ def test_bode_writes_its_figure_and_metrics(tmp_path):
 def test_bode_refuses_bad_input_in_one_line(args, fragments, tmp_path):
     assert_one_line_error(jointctl("bode", "one_dof", *args, "--out", tmp_path / "o"), *fragments)
     assert not (tmp_path / "o" / "metrics.json").exists()
+
+
+def test_identify_then_autotune_with_the_identified_plant_writes_the_chapters_yaml(tmp_path):
+    assert jointctl("identify", "one_dof", "--joint", "joint1", "--out", tmp_path / "id").returncode == 0
+    result = jointctl("autotune", "one_dof", "--controller", "joint1_position_controller", "--zeta", "0.7",
+                      "--bandwidth-hz", "5", "--plant", tmp_path / "id" / "metrics.json", "--out", tmp_path / "at")
+    assert result.returncode == 0, result.stderr
+    metrics = json.loads((tmp_path / "at" / "metrics.json").read_text())
+    assert metrics["plant_source"] == "identified" and metrics["mass"] == pytest.approx(1.02, rel=1e-3)
+    assert metrics["robot"]["step_overshoot_pct"] == pytest.approx(4.6, abs=1.0)
+    import yaml
+    written = yaml.safe_load((tmp_path / "at" / "one_dof_pos_ctl_params.yaml").read_text())
+    assert written["one_DOF_robot"]["joint1_position_controller"]["pid"]["p"] == pytest.approx(metrics["gains"]["p"])
+
+
+@pytest.mark.parametrize("args, fragments", [
+    (["--bandwidth-hz", "20", "--step", "0.5"], ["bandwidth_hz", "the most this step allows is"]),
+    (["--bandwidth-hz", "5", "--zeta", "1.5"], ["zeta", "1.5"]),
+    (["--bandwidth-hz", "5", "--plant", "nowhere.json"], ["--plant", "nowhere.json"]),
+])
+def test_autotune_refuses_bad_input_in_one_line(args, fragments, tmp_path):
+    assert_one_line_error(jointctl("autotune", "one_dof", "--controller", "joint1_position_controller", *args,
+                                   "--out", tmp_path / "o"), *fragments)
+    assert not (tmp_path / "o").exists()

@@ -13,6 +13,7 @@
     jointctl controller ROBOT [--motion-port P]     a simulated industrial controller (simple_message)
     jointctl identify ROBOT|TRACE --joint J [--out DIR]  fit a joint's inertia, damping, friction, gravity
     jointctl bode ROBOT --controller NAME [--out DIR]     a loop's measured frequency response and its model
+    jointctl autotune ROBOT --controller NAME --zeta Z --bandwidth-hz F   gains for a spec, as the chapter's YAML
 
 Every error a user can cause is printed as one line naming the file, field
 and value, with exit status 2.
@@ -148,6 +149,21 @@ def _parser() -> argparse.ArgumentParser:
     bode.add_argument("--plant", type=Path, help="an identification's metrics.json for the model's plant "
                                                  "(default: the robot model's)")
     bode.add_argument("--out", type=Path, default=Path("out/bode"), help="output folder")
+
+    tune_gains = sub.add_parser("autotune", help="PD/P gains for a damping ratio and a bandwidth, checked on the "
+                                                 "model and on the robot, written as the chapter's YAML")
+    tune_gains.add_argument("target", help="a built-in robot or a scenario YAML / name")
+    tune_gains.add_argument("--controller", required=True, help="the joint position or velocity controller to tune")
+    tune_gains.add_argument("--controllers", default=None, help="with a robot: the controller file (default: "
+                                                                "position, or velocity for a velocity controller)")
+    tune_gains.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                            help="override a scenario field (repeatable)")
+    tune_gains.add_argument("--bandwidth-hz", type=float, required=True, help="closed-loop -3 dB bandwidth [Hz]")
+    tune_gains.add_argument("--zeta", type=float, default=0.7, help="damping ratio of a position loop (default 0.7)")
+    tune_gains.add_argument("--step", type=float, default=0.1,
+                            help="the largest step [m, rad, or per s] that must not saturate the effort (default 0.1)")
+    tune_gains.add_argument("--plant", type=Path, help="an identification's metrics.json (default: the robot model)")
+    tune_gains.add_argument("--out", type=Path, default=Path("out/autotune"), help="output folder")
     return parser
 
 
@@ -286,30 +302,50 @@ def _bode(args: argparse.Namespace) -> int:
     import numpy as np
 
     from jointctl.identification.frequency_response import bode
-    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
 
     if not (0 < args.f_min_hz < args.f_max_hz):
         raise JointCtlError(f"must be positive and below --f-max-hz ({args.f_max_hz:g})", field="--f-min-hz",
                             value=args.f_min_hz)
     if not 2 <= args.points <= 200:
         raise JointCtlError("must be 2 to 200", field="--points", value=args.points)
-    plant = None
-    if args.plant is not None:
-        try:
-            plant = json.loads(args.plant.read_text())
-        except (OSError, ValueError) as exc:
-            raise JointCtlError(f"cannot read the plant ({exc})", field="--plant", value=str(args.plant)) from None
-    if args.target in builtin_robots():
-        controllers = args.controllers or ("velocity" if "velocity" in args.controller else "position")
-        scenario = scenario_for_robot(args.target, controllers, args.overrides)
-    else:
-        scenario = load_scenario(args.target, args.overrides)
+    plant = _plant_file(args.plant)
+    scenario = _loop_scenario(args)
     frequencies = np.logspace(np.log10(args.f_min_hz), np.log10(args.f_max_hz), args.points)
     result = bode(scenario, args.controller, frequencies, plant=plant, amplitude=args.amplitude, out_dir=args.out)
     shown = {k: v for k, v in result.items() if not isinstance(v, (list, dict))}
     shown["model"] = {k: v for k, v in result["model"].items() if not isinstance(v, list)}
     print(json.dumps(shown, indent=2, default=float))
     print(f"wrote {args.out}/", file=sys.stderr)
+    return 0
+
+
+def _plant_file(path: Path | None) -> dict | None:
+    if path is None:
+        return None
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise JointCtlError(f"cannot read the plant ({exc})", field="--plant", value=str(path)) from None
+
+
+def _loop_scenario(args: argparse.Namespace, overrides=()):
+    """The scenario of ``bode``/``autotune``: a built-in robot with the controller file its loop needs."""
+    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
+
+    if args.target in builtin_robots():
+        controllers = args.controllers or ("velocity" if "velocity" in args.controller else "position")
+        return scenario_for_robot(args.target, controllers, [*args.overrides, *overrides])
+    return load_scenario(args.target, [*args.overrides, *overrides])
+
+
+def _autotune(args: argparse.Namespace) -> int:
+    from jointctl.identification.autotune import autotune
+
+    result = autotune(lambda overrides: _loop_scenario(args, overrides), args.controller,
+                      bandwidth_hz=args.bandwidth_hz, zeta=args.zeta, step=args.step, plant=_plant_file(args.plant),
+                      out_dir=args.out)
+    print(json.dumps(result, indent=2, default=float))
+    print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0
 
 
@@ -409,7 +445,7 @@ def _tune(args: argparse.Namespace) -> int:
 
 _COMMANDS = {"serve": _serve, "list": _list, "run": _run, "demo": _demo, "prompt": _prompt, "play": _play,
              "sine": _sine, "traj-client": _traj_client, "tune": _tune, "controller": _controller,
-             "identify": _identify, "bode": _bode}
+             "identify": _identify, "bode": _bode, "autotune": _autotune}
 
 
 if __name__ == "__main__":

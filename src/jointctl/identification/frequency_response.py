@@ -7,7 +7,9 @@ transient has died (``settle_s`` and at least two periods) and then measured ove
 (at least ``measure_periods`` and ``measure_s``): gain and phase of the response at the reference's
 frequency by a least-squares sine fit (:func:`jointctl.tools.response_analysis.sinusoid_response`).
 The reference is position only (velocity reference 0), as the chapter's command topic gives it:
-the PID's derivative acts on the measured speed. Simulated time; the amplitude keeps the joint
+the PID's derivative acts on the measured speed. A velocity loop's reference carries a slow
+position term as well, a tenth of the lowest frequency, so that gravity does not walk the joint to
+a limit; the fit takes the reference as given, so the loop's own response is what is measured. Simulated time; the amplitude keeps the joint
 inside its range (a third of the room to the nearer limit for a position loop; for a velocity loop
 the swing ``A/ω`` at the lowest frequency as well).
 
@@ -55,40 +57,62 @@ class LoopModel:
     period_s: float
     loop: str = "position"
 
-    def _systems(self):
+    def _matrices(self):
+        """The sampled plant (A, B), the closed loop (A, B, C) on states (q, q̇[, integral]) and the
+        loop's gain on the plant state, K(z) = (p + i·h·z/(z-1))·C + D (the loop broken at the plant input)."""
         import control
 
-        h = self.period_s
-        plant = control.ss([[0.0, 1.0], [0.0, -self.damping / self.mass]], [[0.0], [1.0 / self.mass]],
-                           [[1.0, 0.0], [0.0, 1.0]], [[0.0], [0.0]])
-        discrete = control.c2d(plant, h, method="zoh")
-        z = control.tf([1.0, 0.0], [1.0], h)
-        integral = self.i * h * z / (z - 1) if self.i else 0 * z
-        pos = control.ss2tf(discrete[0, 0])
-        vel = control.ss2tf(discrete[1, 0])
-        if self.loop == "position":
-            # u = (p + I(z))·(r - q) - d·q̇: the loop broken at the plant input.
-            loop = (self.p + integral) * pos + self.d * vel
-            closed = control.minreal((self.p + integral) * pos / (1 + loop), verbose=False)
-        else:
-            loop = (self.p + integral) * vel
-            closed = control.minreal(loop / (1 + loop), verbose=False)
-        return loop, closed
+        h, m, b = self.period_s, self.mass, self.damping
+        plant = control.ss([[0.0, 1.0], [0.0, -b / m]], [[0.0], [1.0 / m]], np.eye(2), np.zeros((2, 1)))
+        sampled = control.c2d(plant, h, method="zoh")
+        a, bu = np.asarray(sampled.A), np.asarray(sampled.B)
+        c = np.array([[1.0, 0.0]]) if self.loop == "position" else np.array([[0.0, 1.0]])
+        dv = np.array([[0.0, self.d]]) if self.loop == "position" else np.zeros((1, 2))
+        kp = self.p + self.i * h  # the PID adds i·h·e to its integral before using it
+        a_cl = a - bu @ (kp * c + dv)
+        b_cl = bu * kp
+        c_cl = c
+        if self.i:
+            a_cl = np.block([[a_cl, bu], [-self.i * h * c, np.ones((1, 1))]])
+            b_cl = np.vstack([b_cl, [[self.i * h]]])
+            c_cl = np.hstack([c, [[0.0]]])
+        return a, bu, c, dv, a_cl, b_cl, c_cl
+
+    def closed_loop(self):
+        """The sampled closed loop, reference -> response, as a python-control state-space system."""
+        import control
+
+        *_, a_cl, b_cl, c_cl = self._matrices()
+        return control.ss(a_cl, b_cl, c_cl, [[0.0]], self.period_s)
 
     def response(self, frequencies_hz) -> tuple[np.ndarray, np.ndarray]:
         """Closed-loop gain [dB] and phase [deg] at ``frequencies_hz``."""
-        _, closed = self._systems()
-        w = 2 * np.pi * np.asarray(frequencies_hz, dtype=float)
-        h = np.array([complex(closed(complex(math.cos(x * self.period_s), math.sin(x * self.period_s))))
-                      for x in w])
+        *_, a_cl, b_cl, c_cl = self._matrices()
+        eye = np.eye(a_cl.shape[0])
+        values = []
+        for f in np.asarray(frequencies_hz, dtype=float):
+            z = np.exp(1j * 2 * math.pi * f * self.period_s)
+            values.append((c_cl @ np.linalg.solve(z * eye - a_cl, b_cl))[0, 0])
+        h = np.array(values)
         return 20 * np.log10(np.abs(h)), np.degrees(np.unwrap(np.angle(h)))
+
+    def loop_response(self, frequencies_hz) -> np.ndarray:
+        """The loop transfer K(z)·(zI - A)⁻¹B at ``frequencies_hz`` (complex)."""
+        a, bu, c, dv, *_ = self._matrices()
+        out = []
+        for f in np.asarray(frequencies_hz, dtype=float):
+            z = np.exp(1j * 2 * math.pi * f * self.period_s)
+            gain = (self.p + (self.i * self.period_s * z / (z - 1) if self.i else 0.0)) * c + dv
+            out.append((gain @ np.linalg.solve(z * np.eye(2) - a, bu))[0, 0])
+        return np.array(out)
 
     def margins(self) -> dict:
         """Gain margin [dB] and phase margin [deg] of the loop, with their frequencies [Hz]."""
         import control
 
-        loop, _ = self._systems()
-        with warnings.catch_warnings():  # its note that it falls back to the frequency-response method
+        f = np.logspace(-2, math.log10(0.49 / self.period_s), 4000)
+        loop = control.frd(self.loop_response(f), 2 * np.pi * f)
+        with warnings.catch_warnings():  # notes about the frequency-response method
             warnings.simplefilter("ignore", UserWarning)
             gm, pm, wcg, wcp = control.margin(loop)
         as_db = 20 * math.log10(gm) if gm and math.isfinite(gm) else math.inf
@@ -170,13 +194,19 @@ def measure(scenario: Scenario, controller_name: str, frequencies_hz, *, amplitu
         return offset + amplitude * math.sin(2 * math.pi * f * (time_s - start))
 
     measured = hardware.position if loop == "position" else hardware.velocity
+    # A velocity loop does not hold a position: gravity or friction would walk the joint to a limit. A
+    # slow position term in its reference (a tenth of the lowest frequency) keeps it near ``rest``; the
+    # fit uses the reference as given, so the loop's response is measured all the same.
+    hold_per_s = 2 * math.pi * min(frequencies) / 10 if loop == "velocity" else 0.0
+    given = [offset]
 
     def drive(time_s: float) -> None:
-        controller.set_reference(reference_at(time_s))
+        given[0] = reference_at(time_s) + hold_per_s * (rest - hardware.position[index])
+        controller.set_reference(given[0])
 
     def record(time_s: float) -> None:
         times.append(time_s)
-        references.append(reference_at(time_s))
+        references.append(given[0])
         responses.append(measured[index])
 
     session.loop.add_input(drive)

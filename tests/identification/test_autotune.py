@@ -1,0 +1,89 @@
+"""Gains for a damping ratio and a bandwidth, met by the simulated robots: the 1-DOF robot at
+ζ 0.7 and 5 Hz (step overshoot exp(-πζ/sqrt(1-ζ²)) = 4.6 %), the arm's joint 1 around the pre-pose;
+refusals that name what is achievable."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import yaml
+
+from jointctl.identification.autotune import autotune, bandwidth_ratio, design, overshoot_of, zeta_of
+from jointctl.identification.plant_fit import IdentificationError
+from jointctl.scenario.spec import scenario_for_robot
+
+PRE_POSE = [0.0, 1.0, 0.0, -2.0, 0.0, 1.0, 0.0]
+
+
+def one_dof(overrides=()):
+    return scenario_for_robot("one_dof", "position", list(overrides))
+
+
+def test_the_second_order_formulas() -> None:
+    assert overshoot_of(0.7) == pytest.approx(0.046, abs=5e-4)
+    assert bandwidth_ratio(1 / math.sqrt(2)) == pytest.approx(1.0)  # ζ = 0.707: bandwidth = ωn
+    gains = design(1.0, 0.0, loop="position", bandwidth_hz=1.0, zeta=0.5, period_s=1e-5)
+    wn = 2 * math.pi / bandwidth_ratio(0.5)  # a fast loop: the continuous design
+    assert gains["p"] == pytest.approx(wn**2, rel=5e-3) and gains["d"] == pytest.approx(wn, rel=5e-3)
+    assert zeta_of(overshoot_of(0.55)) == pytest.approx(0.55)
+
+
+def test_the_one_dof_robot_meets_zeta_07_and_5_hz(tmp_path) -> None:
+    result = autotune(one_dof, "joint1_position_controller", bandwidth_hz=5.0, zeta=0.7, step=0.1, out_dir=tmp_path)
+    assert result["robot"]["step_overshoot_pct"] == pytest.approx(4.6, abs=1.0)
+    assert result["robot"]["bandwidth_hz"] == pytest.approx(5.0, rel=0.05)
+    assert result["model"]["overshoot_pct"] == pytest.approx(4.6, abs=0.05)
+    assert result["model"]["bandwidth_hz"] == pytest.approx(5.0, rel=0.005)
+    written = yaml.safe_load((tmp_path / "one_dof_pos_ctl_params.yaml").read_text())
+    pid = written["one_DOF_robot"]["joint1_position_controller"]["pid"]
+    assert pid == pytest.approx({k: round(v, 6) for k, v in result["gains"].items()})
+    # The file loads as the chapter's YAML and drives the robot with the new gains.
+    from jointctl.scenario.session import Session
+
+    scenario = one_dof()
+    tuned = type(scenario)(**{**scenario.__dict__, "controller_file": tmp_path / "one_dof_pos_ctl_params.yaml"})
+    with Session(tuned) as session:
+        assert session.manager.controller("joint1_position_controller").pid.gains.p == pytest.approx(pid["p"])
+
+
+def test_a_velocity_loop_gets_its_bandwidth() -> None:
+    result = autotune(lambda o: scenario_for_robot("one_dof", "velocity", list(o)), "joint1_velocity_controller",
+                      bandwidth_hz=20.0, step=0.1)
+    # (p + b)/m = ωb for the continuous loop; at Kv·h/m ≈ 0.1 the sampled loop needs less.
+    assert result["gains"]["p"] == pytest.approx(1.01 * 2 * math.pi * 20 - 10, rel=0.1)
+    assert result["robot"]["bandwidth_hz"] == pytest.approx(20.0, rel=0.05)
+
+
+def test_a_spec_the_effort_limit_cannot_meet_is_refused_naming_the_achievable_bandwidth() -> None:
+    # p for 20 Hz: 1.01·(2π·20/1.01)² ≈ 15 600 N/m; a 0.5 m step would ask 7800 N of 1000 N.
+    with pytest.raises(IdentificationError) as info:
+        autotune(one_dof, "joint1_position_controller", bandwidth_hz=20.0, step=0.5)
+    p_max = (1000.0 - 1.01 * 9.81) / 0.5
+    achievable = math.sqrt(p_max / 1.01) * bandwidth_ratio(0.7) / (2 * math.pi)
+    assert f"the most this step allows is {achievable:.3g} Hz" in str(info.value)
+    assert info.value.field == "bandwidth_hz"
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    (dict(bandwidth_hz=-1.0), "bandwidth_hz"), (dict(step=0.0), "step"), (dict(zeta=1.2), "zeta"),
+])
+def test_bad_specs_are_refused_naming_the_field(kwargs, field) -> None:
+    args = dict(bandwidth_hz=5.0, zeta=0.7, step=0.1) | kwargs
+    with pytest.raises(IdentificationError) as info:
+        autotune(one_dof, "joint1_position_controller", check_on_robot=False, **args)
+    assert info.value.field == field
+
+
+@pytest.mark.slow
+def test_the_arms_joint1_around_the_pre_pose_meets_the_same_spec() -> None:
+    def arm(overrides=()):
+        return scenario_for_robot("arm7dof", "position",
+                                  [f"initial_positions.joint{k}={q}" for k, q in enumerate(PRE_POSE)] + list(overrides))
+
+    # The plant is the model's M11 at the pre-pose; the held joints, coupled through M, make joint 1
+    # lighter at 5 Hz (their loops are slower): a little more damped and slower than designed.
+    result = autotune(arm, "joint1_position_controller", bandwidth_hz=5.0, zeta=0.7, step=0.01)
+    assert result["robot"]["step_zeta"] == pytest.approx(0.7, rel=0.1)
+    assert result["robot"]["bandwidth_hz"] == pytest.approx(5.0, rel=0.1)
+    assert result["gains"]["p"] * 0.01 + result["gravity_load"] <= 1300.0  # the step stays within the effort limit
