@@ -210,3 +210,65 @@ def test_controls_pause_resume_reset_gravity_and_drop_weight(browser, tune):
     assert reply["path"].endswith("one_dof_pos_ctl_params.yaml")
     assert "pid: {p: 400.0, i: 0.0, d: 0.0}" in reply["yaml"]
     assert "download" in browser.find_element("id", "saved").text
+
+
+def analysis_result(driver, kind: str, timeout_s: float = 60.0) -> dict:
+    wait_for(lambda: driver.execute_script(f"return window.jointctlPage.analysis.results['{kind}'] || null;"),
+             timeout_s=timeout_s, what=f"the {kind} result")
+    return driver.execute_script(f"return window.jointctlPage.analysis.results['{kind}'];")
+
+
+def gain_reply(driver, name: str, value: float) -> bool:
+    return driver.execute_script(
+        "return window.jointctlPage.replies.some((r) => r.request === 'gain' && r.name === arguments[0] "
+        "&& Math.abs(r.value - arguments[1]) < 1e-9);", name, value)
+
+
+def test_identify_bode_and_autotune_panels_and_applying_and_reverting_the_gains(browser, tune):
+    server = tune("one_dof", "--controllers", "position")
+    open_page(browser, server)
+    choose(browser, "analysis-controller", CONTROLLER)
+    browser.find_element("id", "identify").click()
+    identified = analysis_result(browser, "identify")
+    assert identified["mass_kg"] == pytest.approx(1.01, rel=0.02)
+    assert identified["gravity_load_n"] == pytest.approx(1.01 * 9.81, rel=0.01)
+    mass_cell = browser.find_element("css selector", "#analysis td[data-name='mass']")
+    assert mass_cell.text.startswith("1.02") and mass_cell.text.endswith("kg")
+
+    browser.find_element("id", "bode").click()
+    swept = analysis_result(browser, "bode")
+    assert swept["phase_minus_90_hz"] == pytest.approx(math.sqrt(400 / 1.01) / (2 * math.pi), rel=0.01)
+    assert page_state(browser, "bodeDrawn") == 1
+    assert browser.find_element("id", "plot-bode").is_displayed()
+
+    type_into(browser, "tune-zeta", "0.7")
+    type_into(browser, "tune-bandwidth", "5")
+    browser.find_element("id", "autotune").click()
+    tuned = analysis_result(browser, "autotune")
+    assert tuned["robot"]["step_overshoot_pct"] == pytest.approx(4.6, abs=1.0)
+    assert tuned["previous_gains"]["p"] == 400
+    browser.find_element("id", "tune-apply").click()
+    wait_for(lambda: gain_reply(browser, "p", tuned["gains"]["p"]) and gain_reply(browser, "d", tuned["gains"]["d"]),
+             what="the tuned gains accepted")
+    assert float(browser.find_element("id", GAIN_P).get_attribute("value")) == pytest.approx(tuned["gains"]["p"])
+    # The live loop has them: a Bode now sees the tuned loop (its model uses the live gains).
+    browser.find_element("id", "bode").click()
+    wait_for(lambda: page_state(browser, "bodeDrawn") == 2, what="the second sweep")
+    assert analysis_result(browser, "bode")["model"]["p"] == pytest.approx(tuned["gains"]["p"])
+    browser.find_element("id", "tune-revert").click()
+    wait_for(lambda: gain_reply(browser, "p", 400.0) and gain_reply(browser, "d", 0.0), what="the gains reverted")
+    assert browser.find_element("id", GAIN_P).get_attribute("value") == "400"
+
+
+def test_an_autotune_the_effort_cannot_meet_is_refused_on_the_page(browser, tune):
+    server = tune("one_dof", "--controllers", "position")
+    open_page(browser, server)
+    choose(browser, "analysis-controller", CONTROLLER)
+    type_into(browser, "tune-bandwidth", "20")
+    type_into(browser, "tune-step", "0.5")
+    errors = len(page_state(browser, "errors"))
+    browser.find_element("id", "autotune").click()
+    wait_for(lambda: len(page_state(browser, "errors")) > errors, what="the refusal")
+    assert "the most this step allows is" in last_error(browser)["message"]
+    assert "refused" in browser.find_element("id", "analysis-status").text
+    assert browser.find_element("id", "tune-apply").get_attribute("disabled") == "true"

@@ -92,3 +92,24 @@ def test_hostile_or_failing_expressions_are_refused_and_never_run(expression, wo
     assert caught.value.field == "source.expression"
     assert words in str(caught.value)
     assert isinstance(caught.value, JointCtlError)
+
+
+def test_analysis_requests_carry_their_spec_with_defaults():
+    from jointctl.tuning.requests import Analyse
+
+    assert parse_request('{"type": "identify", "controller": "c"}') == Analyse("identify", "c", {})
+    assert parse_request('{"type": "autotune", "controller": "c", "bandwidth_hz": 5}') == \
+        Analyse("autotune", "c", {"bandwidth_hz": 5.0, "zeta": 0.7, "step": 0.1})
+
+
+@pytest.mark.parametrize("text, field", [
+    ('{"type": "autotune", "controller": "c"}', "bandwidth_hz"),
+    ('{"type": "autotune", "controller": "c", "bandwidth_hz": -5}', "bandwidth_hz"),
+    ('{"type": "autotune", "controller": "c", "bandwidth_hz": 5, "zeta": "x"}', "zeta"),
+    ('{"type": "bode", "controller": 3}', "controller"),
+    ('{"type": "identify", "controller": "c", "joint": "j"}', "joint"),
+])
+def test_bad_analysis_requests_are_refused_naming_the_field(text, field):
+    with pytest.raises(RequestError) as info:
+        parse_request(text)
+    assert info.value.field == field

@@ -12,6 +12,10 @@ arithmetic on ``i`` and ``t`` and a list of math functions, nothing else). Every
     {"type": "joint", "joint": J}          the joint the page plots and measures
     {"type": "gravity", "value": -9.81}    gravity along the world z axis [m/s²]
     {"type": "pause"} {"type": "resume"} {"type": "reset"} {"type": "drop_weight"} {"type": "save_gains"}
+    {"type": "identify", "controller": C}                          fit the plant of C's joint
+    {"type": "bode", "controller": C}                              C's closed-loop frequency response
+    {"type": "autotune", "controller": C, "zeta": 0.7, "bandwidth_hz": 5, "step": 0.1}   gains for a spec
+        (analyses: run on a simulated copy of the robot with the live gains; they change nothing live)
 """
 
 from __future__ import annotations
@@ -74,7 +78,19 @@ class Control:
         return self.action
 
 
-Request = SetGain | SetSource | SelectJoint | SetGravity | Control
+@dataclass(frozen=True)
+class Analyse:
+    """An analysis of ``controller``'s joint or loop: ``kind`` identify, bode or autotune; ``spec``
+    the autotune's ``zeta``, ``bandwidth_hz`` and ``step``."""
+
+    kind: str
+    controller: str
+    spec: dict[str, float]
+
+
+ANALYSES = ("identify", "bode", "autotune")
+
+Request = SetGain | SetSource | SelectJoint | SetGravity | Control | Analyse
 
 _FIELDS = {
     "gain": ({"controller", "name", "value"}, set()),
@@ -82,6 +98,9 @@ _FIELDS = {
     "joint": ({"joint"}, set()),
     "gravity": ({"value"}, set()),
     **{action: (set(), set()) for action in CONTROLS},
+    "identify": ({"controller"}, set()),
+    "bode": ({"controller"}, set()),
+    "autotune": ({"controller", "bandwidth_hz"}, {"zeta", "step"}),
 }
 
 
@@ -129,6 +148,15 @@ def parse_request(text: Any) -> Request:
         if finite_number(value) is None:
             raise RequestError("must be a finite number [m/s²]", field="gravity", value=value)
         return SetGravity(float(value))
+    if kind in ANALYSES:
+        spec = {}
+        for key, default in (("bandwidth_hz", None), ("zeta", 0.7), ("step", 0.1)):
+            if key in required | optional:
+                value = message.get(key, default)
+                if finite_number(value) is None or not value > 0:
+                    raise RequestError("must be a positive number", field=key, value=value)
+                spec[key] = float(value)
+        return Analyse(kind, _string(message, "controller"), spec)
     return Control(kind)
 
 

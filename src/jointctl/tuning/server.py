@@ -8,7 +8,8 @@ the one websocket a page talks through. Per connection the server sends:
 - ``data`` at :data:`STREAM_HZ`: every row since the last message for the page's joint, thinned to
   :data:`DISPLAY_HZ` (the rows are picked by their cycle number, so no row is skipped twice or sent twice);
 - ``status`` at :data:`STATUS_HZ` and ``measure`` at :data:`MEASURE_HZ`;
-- a reply to every request: ``ok``, ``saved`` or ``error`` (with ``field`` and ``message``).
+- a reply to every request: ``ok``, ``saved``, ``analysis`` (Identify, Bode, Auto-tune: see
+  :mod:`jointctl.tuning.analyses`) or ``error`` (with ``field`` and ``message``).
 
 Websocket connections from a page of another origin are refused: only the tuning page itself
 (or a client sending no Origin header) may move the robot.
@@ -27,7 +28,8 @@ from pathlib import Path
 from typing import Any
 
 from jointctl.errors import JointCtlError
-from jointctl.tuning.requests import MAX_REQUEST_CHARS, SelectJoint, parse_request
+from jointctl.tuning.analyses import run_analysis
+from jointctl.tuning.requests import MAX_REQUEST_CHARS, Analyse, SelectJoint, parse_request
 from jointctl.tuning.runner import LiveRunner
 from jointctl.tuning.tuner import Tuner, stream_columns
 
@@ -39,6 +41,7 @@ MEASURE_HZ = 2.0
 _STATIC = {
     "index.html": "text/html; charset=utf-8",
     "app.js": "text/javascript; charset=utf-8",
+    "analysis.js": "text/javascript; charset=utf-8",
     "style.css": "text/css; charset=utf-8",
     "vendor/uPlot.iife.min.js": "text/javascript; charset=utf-8",
     "vendor/uPlot.min.css": "text/css; charset=utf-8",
@@ -160,7 +163,10 @@ class _Connection:
         try:
             request = parse_request(text)
             kind = request.kind
-            reply = self.tuner.handle(request)
+            if isinstance(request, Analyse):  # seconds of simulation: off the event loop, the stream goes on
+                reply = await asyncio.to_thread(run_analysis, self.tuner, request)
+            else:
+                reply = self.tuner.handle(request)
             if isinstance(request, SelectJoint):
                 self.joint = request.joint
                 self.cursor = self.tuner.buffer.readable_from()  # the new joint's whole window

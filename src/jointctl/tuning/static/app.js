@@ -11,6 +11,7 @@
     series: () => data,
   };
   window.jointctlPage = page;
+  page.send = (request) => send(request);  // for analysis.js
 
   const $ = (id) => document.getElementById(id);
   const data = { t: [], reference: [], position: [], velocity: [], effort: [], force: [] };
@@ -39,6 +40,7 @@
       try { message = JSON.parse(event.data); } catch (e) { showError("unreadable message from the server"); return; }
       const handler = handlers[message.type];
       if (handler) handler(message);
+      window.dispatchEvent(new CustomEvent("jointctl:" + message.type, { detail: message }));  // analysis.js
     };
   }
 
