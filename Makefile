@@ -5,6 +5,7 @@
 #   make ros    install Debian's ROS 1 packages and generate jointctl's message classes (make test does it)
 #   make web    build the tuning page's plotting library (uPlot, npm registry) into the package
 #   make browser  install Debian's Chromium and ChromeDriver for the page's browser tests (make test does it)
+#   make render   install Mesa's software EGL and ffmpeg for videos of runs (make demo and make test do it)
 #
 # The virtual environment is made from Debian's /usr/bin/python3 with access to its
 # system packages, so the ROS 1 packages Debian ships (rospy, actionlib) import beside
@@ -17,7 +18,7 @@ OUT    ?= out/demo
 
 WEB_ASSET := src/jointctl/tuning/static/vendor/uPlot.iife.min.js
 
-.PHONY: demo test bench venv ros web browser clean
+.PHONY: demo test bench venv ros web browser render clean
 
 $(VENV)/.installed: pyproject.toml scripts/bootstrap.sh
 	PYTHON=$(PYTHON) VENV=$(VENV) bash scripts/bootstrap.sh
@@ -30,7 +31,7 @@ web: $(WEB_ASSET)
 
 venv: $(VENV)/.installed web
 
-demo: venv
+demo: venv render
 	$(VENV)/bin/jointctl demo --out $(OUT)
 
 # ROS 1 from Debian (apt), the message classes jointctl carries (generated without catkin), and a
@@ -43,10 +44,13 @@ ros: venv
 browser:
 	bash scripts/install_browser.sh
 
-test: ros browser
+render:
+	bash scripts/install_render.sh
+
+test: ros browser render
 	$(PY) -m pytest -q
 
-bench: venv
+bench: venv render
 	$(PY) benchmarks/run.py
 
 clean:

@@ -119,6 +119,9 @@ def test_demo_writes_a_report_with_every_experiment(tmp_path):
         assert f"]({name}/position.png)" in report
     assert "| natural_frequency_rad_s |" in report and "| expected |" in report
     assert "## arm7dof_streamer" not in report  # a robot to drive, not an experiment
+    for name in ("one_dof_step", "one_dof_drop_weight", "one_dof_nac_drop", "arm7dof_pose", "arm7dof_nac_catch"):
+        assert f"![{name}: the run]({name}/video.gif)" in report  # a video of each experiment
+        assert (tmp_path / "demo" / name / "video.gif").stat().st_size > 10_000
 
 
 @pytest.mark.parametrize("args, fragments", [
@@ -233,3 +236,23 @@ def test_autotune_refuses_bad_input_in_one_line(args, fragments, tmp_path):
     assert_one_line_error(jointctl("autotune", "one_dof", "--controller", "joint1_position_controller", *args,
                                    "--out", tmp_path / "o"), *fragments)
     assert not (tmp_path / "o").exists()
+
+
+def test_run_video_writes_the_videos_next_to_the_trace(tmp_path):
+    result = jointctl("run", "one_dof_step", "--set", "duration_s=1.0", "--video", "--video-fps", "10",
+                      "--video-size", "320x240", "--out", tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "video.mp4").is_file() and (tmp_path / "video.gif").is_file()
+    assert json.loads((tmp_path / "metrics.json").read_text())["video"]["frames"] == 10
+
+
+@pytest.mark.parametrize("args, fragments", [
+    (["--video-size", "640"], ["--video-size", "WIDTHxHEIGHT", "640"]),
+    (["--video-size", "641x480"], ["--video-size", "even", "641x480"]),
+    (["--video-fps", "0"], ["--video-fps", "0"]),
+    (["--video-camera", "0,0,1"], ["--video-camera", "six numbers"]),
+    (["--video-camera", "0,0,1,-2,90,0"], ["--video-camera.distance_m", "-2"]),
+])
+def test_run_video_refuses_bad_options_before_anything_runs(args, fragments, tmp_path):
+    assert_one_line_error(jointctl("run", "one_dof_step", "--video", *args, "--out", tmp_path / "o"), *fragments)
+    assert not (tmp_path / "o" / "trace.csv").exists()

@@ -50,6 +50,13 @@ def _parser() -> argparse.ArgumentParser:
                      help="with --realtime: loop time per wall-clock time (default 1.0)")
     run.add_argument("--package-path", action="append", default=[], metavar="DIR",
                      help="folder searched for $(find pkg) and package:// (repeatable)")
+    run.add_argument("--video", action="store_true",
+                     help="draw the run offscreen after it: video.mp4 and a small video.gif in the output folder")
+    run.add_argument("--video-fps", type=float, default=25.0, help="frames per second of loop time (default 25)")
+    run.add_argument("--video-size", default="640x480", help="WIDTHxHEIGHT in pixels, even (default 640x480)")
+    run.add_argument("--video-camera", metavar="X,Y,Z,DISTANCE,AZIMUTH,ELEVATION",
+                     help="the camera: the point looked at [m], distance [m], azimuth and elevation [deg] "
+                          "(default: the robot's, from robot.yaml)")
 
     serve = sub.add_parser("serve", help="run a robot or a scenario as a ROS 1 node (chapter topic names)")
     _live_target_arguments(serve)
@@ -224,11 +231,34 @@ def _run(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario, args.overrides)
     out = args.out or Path("out") / scenario.name
     metrics = run_scenario(scenario, out, realtime=args.realtime, speed=args.speed,
-                           package_path=tuple(args.package_path))
+                           package_path=tuple(args.package_path), video=_video_settings(args))
     shown = {k: v for k, v in metrics.items() if k not in ("plant",)}
     print(json.dumps(shown, indent=2))
     print(f"wrote {out}/", file=sys.stderr)
     return 0
+
+
+def _video_settings(args: argparse.Namespace):
+    """``run --video``'s settings, checked before anything runs; None without --video."""
+    if not args.video:
+        return None
+    from jointctl.sim.rendering import CameraView
+    from jointctl.tools.video import VideoSettings
+
+    width, height = VideoSettings.parse_size(args.video_size)
+    camera = None
+    if args.video_camera is not None:
+        parts = args.video_camera.split(",")
+        try:
+            numbers = [float(p) for p in parts]
+        except ValueError:
+            numbers = []
+        if len(numbers) != 6:
+            raise JointCtlError("must be six numbers X,Y,Z,DISTANCE,AZIMUTH,ELEVATION", field="--video-camera",
+                                value=args.video_camera)
+        camera = CameraView.from_config({"lookat": numbers[:3], "distance_m": numbers[3], "azimuth_deg": numbers[4],
+                                         "elevation_deg": numbers[5]}, field="--video-camera")
+    return VideoSettings(fps=args.video_fps, width=width, height=height, camera=camera)
 
 
 def _serve(args: argparse.Namespace) -> int:

@@ -11,9 +11,13 @@ from typing import Any
 from jointctl.scenario.analyses import check_analysis
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario, builtin_scenarios, load_scenario
+from jointctl.errors import ConfigError
 from jointctl.tools.recorder import load_trace
+from jointctl.tools.video import FrameCapture, VideoSettings, robot_camera, write_video
 
 METRICS_FILE = "metrics.json"
+#: The demo report's videos: small GIFs only.
+DEMO_VIDEO = VideoSettings(fps=15.0, width=320, height=240, mp4=False)
 
 
 def run_scenario(
@@ -23,12 +27,23 @@ def run_scenario(
     realtime: bool = False,
     speed: float = 1.0,
     package_path: tuple[str, ...] = (),
+    video: VideoSettings | None = None,
 ) -> dict[str, Any]:
-    """Run ``scenario``, write its outputs into ``out_dir`` and return the metrics."""
+    """Run ``scenario``, write its outputs into ``out_dir`` and return the metrics. With ``video``,
+    the world's states are kept at its frame rate and drawn after the run into ``video.gif`` (and
+    ``video.mp4``), from its camera or the robot's (``robot.yaml``: ``video.camera``)."""
     out = Path(out_dir)
     with Session(scenario, out_dir=out, realtime=realtime, speed=speed,
                  package_path=package_path) as session:
         analysis = check_analysis(session)
+        capture = camera = None
+        if video is not None:
+            if session.world is None:
+                raise ConfigError("videos are drawn from the simulation; this hardware has none", field="--video")
+            camera = video.camera or robot_camera(scenario.robot.extras,
+                                                  source=str(scenario.robot.folder / "robot.yaml"))
+            capture = FrameCapture(session.world, video.fps)
+            session.loop.add_observer(capture)
         real_time_factor = session.run()
     # A controller that failed was deactivated and the run went on (its trace is written), but
     # its figures would not describe the experiment: the run ends in an error instead.
@@ -37,6 +52,9 @@ def run_scenario(
     if analysis is not None:
         metrics.update(analysis(session, load_trace(session.trace_path), out, scenario.analysis))
     metrics["real_time_factor"] = real_time_factor
+    if capture is not None:
+        metrics["video"] = {**write_video(capture.frames, out, video, camera), "frames": len(capture.frames),
+                            "fps": video.fps}
     rejected = {n: s.rejected_samples for n, s in session.sources.items() if s.rejected_samples}
     if rejected:
         metrics["rejected_command_samples"] = rejected
@@ -67,7 +85,7 @@ def run_demo(out_dir: str | Path, names: Iterable[str] | None = None) -> Path:
         if names is None and scenario.analysis is None:
             continue  # a robot to drive (arm7dof_streamer), not an experiment
         name = scenario.name
-        metrics = run_scenario(scenario, out / name)
+        metrics = run_scenario(scenario, out / name, video=DEMO_VIDEO)
         sections.append(_report_section(scenario, metrics, out / name, out))
     report = out / "report.md"
     report.write_text(
@@ -87,7 +105,7 @@ def _report_section(scenario: Scenario, metrics: dict[str, Any], folder: Path, r
     expected = metrics.get("expected", {})
     lines += ["| metric | measured | expected | difference |", "|---|---|---|---|"]
     for key, value in metrics.items():
-        if key in ("expected", "plant", "scenario") or not isinstance(value, (int, float)):
+        if key in ("expected", "plant", "scenario", "video") or not isinstance(value, (int, float)):
             continue
         exp = expected.get(key)
         if exp is None:
@@ -95,6 +113,9 @@ def _report_section(scenario: Scenario, metrics: dict[str, Any], folder: Path, r
         else:
             lines.append(f"| {key} | {_fmt(value)} | {_fmt(exp)} | {_difference(value, exp)} |")
     lines.append("")
+    gif = folder / "video.gif"
+    if gif.is_file():
+        lines += [f"![{scenario.name}: the run]({gif.relative_to(root).as_posix()})", ""]
     for png in sorted(folder.glob("*.png")):
         rel = png.relative_to(root)
         lines.append(f"![{scenario.name}: {png.stem}]({rel.as_posix()})")
