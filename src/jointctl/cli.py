@@ -50,6 +50,8 @@ def _parser() -> argparse.ArgumentParser:
                      help="with --realtime: loop time per wall-clock time (default 1.0)")
     run.add_argument("--package-path", action="append", default=[], metavar="DIR",
                      help="folder searched for $(find pkg) and package:// (repeatable)")
+    run.add_argument("--view", action="store_true",
+                     help="show the run in MuJoCo's viewer as it goes (a desktop window; paced to the wall clock)")
     run.add_argument("--video", action="store_true",
                      help="draw the run offscreen after it: video.mp4 and a small video.gif in the output folder")
     run.add_argument("--video-fps", type=float, default=25.0, help="frames per second of loop time (default 25)")
@@ -111,6 +113,7 @@ def _parser() -> argparse.ArgumentParser:
     tune.add_argument("--allow-remote", action="store_true",
                       help="allow --host other than loopback: anyone reaching it can move the robot")
     tune.add_argument("--out", type=Path, default=Path("out/tune"), help="where 'Write gains YAML' writes")
+    tune.add_argument("--view", action="store_true", help="also show the robot in MuJoCo's viewer (a desktop window)")
     controller = sub.add_parser("controller", help="a simulated industrial robot controller: the robot in MuJoCo with "
                                                    "its own interpolator, speaking simple_message")
     _live_target_arguments(controller)  # controllers: the robot's servo file by default
@@ -230,8 +233,12 @@ def _run(args: argparse.Namespace) -> int:
         raise JointCtlError("must be positive", field="--speed", value=args.speed)
     scenario = load_scenario(args.scenario, args.overrides)
     out = args.out or Path("out") / scenario.name
-    metrics = run_scenario(scenario, out, realtime=args.realtime, speed=args.speed,
-                           package_path=tuple(args.package_path), video=_video_settings(args))
+    if args.view:
+        from jointctl.tools.viewer import check_display
+
+        check_display()  # before anything runs
+    metrics = run_scenario(scenario, out, realtime=args.realtime or args.view, speed=args.speed,
+                           package_path=tuple(args.package_path), video=_video_settings(args), view=args.view)
     shown = {k: v for k, v in metrics.items() if k not in ("plant",)}
     print(json.dumps(shown, indent=2))
     print(f"wrote {out}/", file=sys.stderr)
@@ -468,7 +475,15 @@ def _tune(args: argparse.Namespace) -> int:
         print(f"jointctl: warning: listening on {args.host}: anyone who can reach it can change gains and move "
               "the robot (the page has no login)", file=sys.stderr)
     check_static_files()
+    if args.view:
+        from jointctl.tools.viewer import LiveViewer, check_display
+
+        check_display()
     tuner = Tuner(_live_scenario(args), out_dir=args.out)
+    if args.view:
+        if tuner.session.world is None:
+            raise JointCtlError("the viewer shows the simulation; this robot has none", field="--view")
+        tuner.loop.add_observer(LiveViewer(tuner.session.world, tuner.loop, stop_when_closed=False))
     serve_tuning(tuner, host=args.host, port=args.port, speed=args.speed)
     return 0
 

@@ -14,6 +14,7 @@ from jointctl.scenario.spec import Scenario, builtin_scenarios, load_scenario
 from jointctl.errors import ConfigError
 from jointctl.tools.recorder import load_trace
 from jointctl.tools.video import FrameCapture, VideoSettings, robot_camera, write_video
+from jointctl.tools.viewer import LiveViewer
 
 METRICS_FILE = "metrics.json"
 #: The demo report's videos: small GIFs only.
@@ -28,10 +29,12 @@ def run_scenario(
     speed: float = 1.0,
     package_path: tuple[str, ...] = (),
     video: VideoSettings | None = None,
+    view: bool = False,
 ) -> dict[str, Any]:
     """Run ``scenario``, write its outputs into ``out_dir`` and return the metrics. With ``video``,
     the world's states are kept at its frame rate and drawn after the run into ``video.gif`` (and
-    ``video.mp4``), from its camera or the robot's (``robot.yaml``: ``video.camera``)."""
+    ``video.mp4``), from its camera or the robot's (``robot.yaml``: ``video.camera``). With ``view``,
+    MuJoCo's viewer shows the run in a window as it goes (paced to the wall clock)."""
     out = Path(out_dir)
     with Session(scenario, out_dir=out, realtime=realtime, speed=speed,
                  package_path=package_path) as session:
@@ -44,7 +47,17 @@ def run_scenario(
                                                   source=str(scenario.robot.folder / "robot.yaml"))
             capture = FrameCapture(session.world, video.fps)
             session.loop.add_observer(capture)
-        real_time_factor = session.run()
+        viewer = None
+        if view:
+            if session.world is None:
+                raise ConfigError("the viewer shows the simulation; this hardware has none", field="--view")
+            viewer = LiveViewer(session.world, session.loop)
+            session.loop.add_observer(viewer)
+        try:
+            real_time_factor = session.run()
+        finally:
+            if viewer is not None:
+                viewer.close()
     # A controller that failed was deactivated and the run went on (its trace is written), but
     # its figures would not describe the experiment: the run ends in an error instead.
     session.manager.raise_failures()
