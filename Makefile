@@ -3,7 +3,7 @@
 #   make test   create .venv, install with test extras, run the test suite
 #   make bench  run the speed and memory benchmarks, printing ratios to a bare MuJoCo loop
 #   make ros    install Debian's ROS 1 packages and generate jointctl's message classes (make test does it)
-#   make web    build the tuning page's plotting library (uPlot, npm registry) into the package
+#   make web    build the tuning page's libraries (uPlot, three.js; npm registry) into the package
 #   make browser  install Debian's Chromium and ChromeDriver for the page's browser tests (make test does it)
 #   make render   install Mesa's software EGL and ffmpeg for videos of runs (make demo and make test do it)
 #
@@ -16,7 +16,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 OUT    ?= out/demo
 
-WEB_ASSET := src/jointctl/tuning/static/vendor/uPlot.iife.min.js
+WEB_ASSET := src/jointctl/tuning/static/vendor/three.module.js
 
 .PHONY: demo test bench venv ros web browser render clean
 

@@ -272,3 +272,37 @@ def test_an_autotune_the_effort_cannot_meet_is_refused_on_the_page(browser, tune
     assert "the most this step allows is" in last_error(browser)["message"]
     assert "refused" in browser.find_element("id", "analysis-status").text
     assert browser.find_element("id", "tune-apply").get_attribute("disabled") == "true"
+
+
+def view3d(driver, expression: str):
+    return driver.execute_script(f"return window.jointctl3d && {expression};")
+
+
+def test_the_3d_view_moves_the_piston_by_the_commanded_distance_and_shows_the_dropped_weight(browser, tune):
+    server = tune("one_dof", "--controllers", "position")
+    open_page(browser, server)
+    wait_for(lambda: view3d(browser, "window.jointctl3d.frames > 0 && window.jointctl3d.lastPoseTime > 1.5"),
+             what="the 3D view drawn and posed")
+    bodies = view3d(browser, "window.jointctl3d.bodies()")
+    assert {"link1", "link2", "ft_sensor_link"} <= set(bodies) and "weight" not in bodies
+    # Hold at -0.5 m, then step to -0.3 m: the top of the piston (the sensor disk) rises 0.2 m.
+    choose(browser, "source-type", "constant")
+    type_into(browser, "constant-value", "-0.5")
+    browser.find_element("id", "source-apply").click()
+    time.sleep(3.0)  # settled (ζ 0.25: amplitude below 1 % after 2 s)
+    before = view3d(browser, "window.jointctl3d.position('ft_sensor_link')")
+    drawn_before = browser.execute_script("return window.jointctl3d.project(...arguments);", *before)
+    type_into(browser, "constant-value", "-0.3")
+    browser.find_element("id", "source-apply").click()
+    time.sleep(3.0)
+    after = view3d(browser, "window.jointctl3d.position('ft_sensor_link')")
+    drawn_after = browser.execute_script("return window.jointctl3d.project(...arguments);", *after)
+    commanded = browser.execute_script("return window.jointctl3d.project(...arguments);",
+                                       before[0], before[1], before[2] + 0.2)
+    assert after[2] - before[2] == pytest.approx(0.2, abs=0.002)
+    moved_px = drawn_after[1] - drawn_before[1]
+    assert abs(moved_px) > 10  # visibly up the screen
+    assert moved_px == pytest.approx(commanded[1] - drawn_before[1], abs=3.0)
+    browser.find_element("id", "drop").click()
+    wait_for(lambda: "weight" in view3d(browser, "window.jointctl3d.bodies()"), what="the weight in the 3D view")
+    wait_for(lambda: view3d(browser, "window.jointctl3d.position('weight')[2] < 3.0"), what="the weight falling")

@@ -93,7 +93,7 @@ def test_stopping_the_command_ends_it_cleanly(tune):
 def test_missing_page_files_and_a_taken_port_are_clear_errors(tmp_path):
     with pytest.raises(JointCtlError, match="make web") as caught:
         check_static_files(tmp_path)
-    assert "vendor/uPlot.iife.min.js" in str(caught.value)
+    assert "vendor/uPlot.iife.min.js" in caught.value.value and "vendor/three.module.js" in caught.value.value
     first = bind("127.0.0.1", 0)
     try:
         with pytest.raises(JointCtlError, match="cannot listen") as caught:

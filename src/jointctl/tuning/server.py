@@ -8,6 +8,9 @@ the one websocket a page talks through. Per connection the server sends:
 - ``data`` at :data:`STREAM_HZ`: every row since the last message for the page's joint, thinned to
   :data:`DISPLAY_HZ` (the rows are picked by their cycle number, so no row is skipped twice or sent twice);
 - ``status`` at :data:`STATUS_HZ` and ``measure`` at :data:`MEASURE_HZ`;
+- for the 3D view (simulated robots): ``scene`` (the visible shapes, again when an object is spawned
+  or removed) and ``poses`` (their poses, 30 times a second of loop time: see
+  :mod:`jointctl.tuning.scene_view`);
 - a reply to every request: ``ok``, ``saved``, ``analysis`` (Identify, Bode, Auto-tune: see
   :mod:`jointctl.tuning.analyses`) or ``error`` (with ``field`` and ``message``).
 
@@ -43,7 +46,10 @@ _STATIC = {
     "app.js": "text/javascript; charset=utf-8",
     "analysis.js": "text/javascript; charset=utf-8",
     "style.css": "text/css; charset=utf-8",
+    "view3d.js": "text/javascript; charset=utf-8",
     "vendor/uPlot.iife.min.js": "text/javascript; charset=utf-8",
+    "vendor/three.module.js": "text/javascript; charset=utf-8",
+    "vendor/three.core.js": "text/javascript; charset=utf-8",
     "vendor/uPlot.min.css": "text/css; charset=utf-8",
 }
 _HEADERS = [
@@ -63,7 +69,7 @@ def check_static_files(folder: Path | None = None) -> None:
     missing = [name for name in _STATIC if not (folder / name).is_file()]
     if missing:
         raise JointCtlError("the tuning page's files are missing; build them with 'make web' "
-                            "(scripts/build_web.sh fetches uPlot from the npm registry)", field="static",
+                            "(scripts/build_web.sh fetches uPlot and three.js from the npm registry)", field="static",
                             value=", ".join(missing))
 
 
@@ -139,11 +145,13 @@ class TuningApp:
 
 
 class _Connection:
-    """One page: its joint, how far its plot has been sent, the last measurement."""
+    """One page: its joint, how far its plot has been sent, the last measurement, the 3D view's state."""
 
     def __init__(self, app: TuningApp, send) -> None:
         self.app = app
         self.tuner = app.tuner
+        self._scene_model = None  # the model whose shapes this page has
+        self._poses_sent = 0
         self._send = send
         self._lock = asyncio.Lock()
         self.joint = self.tuner.default_joint
@@ -174,6 +182,20 @@ class _Connection:
             reply = {"type": "error", "request": kind, "field": exc.field, "message": str(exc)}
         await self.send(reply)
 
+    async def _scene(self) -> None:
+        """The 3D view: the shapes when the world's model changed, the poses when newer (SceneTap)."""
+        tap = self.tuner.scene
+        snapshot = tap.snapshot if tap is not None else None
+        if snapshot is None:
+            return
+        model, poses, time_s, count = snapshot
+        if model is not self._scene_model:
+            self._scene_model = model
+            await self.send(tap.scene_message(model, tap.camera))
+        if count != self._poses_sent:
+            self._poses_sent = count
+            await self.send({"type": "poses", "t": time_s, "poses": poses})
+
     async def stream(self) -> None:
         tuner = self.tuner
         await self.send({"type": "hello", **tuner.describe(), "stream_hz": STREAM_HZ,
@@ -189,6 +211,7 @@ class _Connection:
             due = max(due + 1.0 / STREAM_HZ, clock())
             await asyncio.sleep(due - clock())
             await self._data()
+            await self._scene()
             if tick % per_status == 0:
                 status = tuner.status()
                 runner = self.app.runner

@@ -27,10 +27,12 @@ from jointctl.scenario.session import Session, object_spawner
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.objects import ObjectSpec, object_from_config
 from jointctl.tools.command_sources import CommandSource, command_source_from_config
+from jointctl.tools.video import robot_camera
 from jointctl.tuning.gains import GainGroup, gain_groups, gains_yaml
 from jointctl.tuning.live_buffer import LiveBuffer
 from jointctl.tuning.measurements import SourceRun, measure
 from jointctl.tuning.requests import Control, RequestError, SelectJoint, SetGain, SetGravity, SetSource
+from jointctl.tuning.scene_view import SceneTap
 
 DEFAULT_WINDOW_S = 60.0  # loop time kept for plots and measurements [s]
 
@@ -87,6 +89,12 @@ class Tuner:
         self.epoch = 0
         self.loop.add_input(self._cycle_start)
         self.loop.add_observer(self.buffer)
+        #: The 3D view's source: the world's visible shapes and poses (None on real hardware).
+        self.scene: SceneTap | None = None
+        if session.world is not None:
+            camera = robot_camera(scenario.robot.extras, source=str(scenario.robot.folder / "robot.yaml"))
+            self.scene = SceneTap(session.world, camera=dataclasses.asdict(camera))
+            self.loop.add_observer(self.scene)
         for name, config in scenario.commands.items():
             source = command_source_from_config(config, field=f"commands.{name}", source=scenario.source)
             self._set_source(SetSource(name, source, dict(config)))

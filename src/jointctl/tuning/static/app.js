@@ -40,7 +40,8 @@
       try { message = JSON.parse(event.data); } catch (e) { showError("unreadable message from the server"); return; }
       const handler = handlers[message.type];
       if (handler) handler(message);
-      window.dispatchEvent(new CustomEvent("jointctl:" + message.type, { detail: message }));  // analysis.js
+      if (message.type === "scene") page.scene = message;  // for a 3D view that loads after it came
+      window.dispatchEvent(new CustomEvent("jointctl:" + message.type, { detail: message }));  // analysis.js, view3d.js
     };
   }
 
