@@ -186,6 +186,9 @@ def test_stop_motion_sends_stop_and_the_next_motion_starts_a_new_trajectory(peer
         hw.stop_motion()
         wait_for(lambda: len(peer.points) == 2, "the stop")
         assert peer.points[1].sequence == STOP_TRAJECTORY
+        # "stopping" until the peer's next STATUS (in_motion 0) after its reply (tested against the
+        # simulated controller in tests/industrial/test_controller.py).
+        wait_for(lambda: (hw.read(), hw.fault is None)[1], "the stop to be over")
         command[0] = 0.25
         cycle(hw, 20)
         wait_for(lambda: len(peer.points) == 3, "the next motion")
