@@ -382,3 +382,35 @@ def test_parsed_numbers_are_finite_floats() -> None:
     robot = parse_urdf(BASE)
     values = [*robot.joint("j1").origin.xyz, *robot.joint("j1").axis, robot.joint("j1").damping]
     assert all(isinstance(v, float) and math.isfinite(v) for v in values)
+
+
+COLOURED = """<?xml version="1.0"?>
+<robot name="painted">
+  <material name="blue"><color rgba="0 0 0.8 1"/></material>
+  <link name="base">
+    <visual><geometry><box size="1 1 1"/></geometry><material name="blue"/></visual>
+    <visual><geometry><sphere radius="0.1"/></geometry><material name="red"><color rgba="1 0 0 0.5"/></material></visual>
+    <visual><geometry><sphere radius="0.2"/></geometry></visual>
+  </link>
+</robot>"""
+
+
+def test_visual_colours_come_from_their_material_or_a_named_one() -> None:
+    link = parse_urdf(COLOURED, source=SOURCE).link("base")
+    assert [v.rgba for v in link.visuals] == [(0.0, 0.0, 0.8, 1.0), (1.0, 0.0, 0.0, 0.5), None]
+
+
+def test_a_colour_out_of_range_is_refused_naming_it() -> None:
+    with pytest.raises(ModelError, match=r"material\.color\.rgba") as info:
+        parse_urdf(COLOURED.replace('rgba="1 0 0 0.5"', 'rgba="1 0 0 2"'), source=SOURCE)
+    assert "1 0 0 2" in str(info.value)
+
+
+def test_the_colours_reach_the_simulated_world() -> None:
+    from jointctl.model.mjcf import compile_robot
+
+    model = compile_robot(parse_urdf(COLOURED, source=SOURCE))
+    visible = [tuple(round(float(c), 3) for c in model.geom_rgba[g]) for g in range(model.ngeom)
+               if model.geom_rgba[g][3] > 0]
+    assert (0.0, 0.0, 0.8, 1.0) in visible and (1.0, 0.0, 0.0, 0.5) in visible
+    assert (0.5, 0.5, 0.5, 1.0) in visible  # MuJoCo's grey where the URDF names no colour

@@ -231,6 +231,8 @@ class _Builder:
             kwargs.update(group=COLLISION_GROUP, contype=1, conaffinity=1, rgba=[0.5, 0.5, 0.9, 0.0])
         else:
             kwargs.update(group=VISUAL_GROUP, contype=0, conaffinity=0)
+            if shape.rgba is not None:  # the URDF's colour (MuJoCo's grey otherwise)
+                kwargs["rgba"] = list(shape.rgba)
         body.add_geom(**kwargs)
 
     def mesh(self, path: str, scale) -> str:

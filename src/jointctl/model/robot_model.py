@@ -56,10 +56,12 @@ class Geometry:
 
 @dataclass(frozen=True)
 class Shape:
-    """A visual or collision shape placed at ``origin`` in its link's frame."""
+    """A visual or collision shape placed at ``origin`` in its link's frame; ``rgba`` the colour of a
+    visual (its URDF ``<material><color rgba>``, 0..1), None when it names none."""
 
     origin: Pose
     geometry: Geometry
+    rgba: tuple[float, float, float, float] | None = None
 
 
 @dataclass(frozen=True)

@@ -94,6 +94,12 @@ class _Parser:
         name = root.get("name")
         if not name:
             raise self.error("<robot> needs a name", "robot", has_value=False)
+        # Named colours defined at the top level, which visuals may refer to by name.
+        self.materials = {}
+        for k, mel in enumerate(root.findall("material")):
+            rgba = self.color(mel, f"material[{mel.get('name') or k}]")
+            if mel.get("name") and rgba is not None:
+                self.materials[mel.get("name")] = rgba
         links = tuple(self.link(el) for el in root.findall("link"))
         if not links:
             raise self.error("the robot has no <link>", "robot", has_value=False)
@@ -150,11 +156,31 @@ class _Parser:
                     raise self.error(f"{attr} must not be negative", w, v)
             inertial = Inertial(mass, self.pose(iel.find("origin"), f"{where}.inertial"),
                                 (ixx, iyy, izz, ixy, ixz, iyz))
-        visuals = tuple(self.shape(s, f"{where}.visual") for s in el.findall("visual"))
+        visuals = tuple(self.shape(s, f"{where}.visual", with_color=True) for s in el.findall("visual"))
         collisions = tuple(self.shape(s, f"{where}.collision") for s in el.findall("collision"))
         return Link(name, inertial, visuals, collisions)
 
-    def shape(self, el: ET.Element, where: str) -> Shape:
+    def color(self, mel: ET.Element, where: str) -> tuple[float, float, float, float] | None:
+        """The ``<color rgba="r g b a">`` of a ``<material>`` (0..1 each), or None when it has none."""
+        cel = mel.find("color")
+        if cel is None:
+            return None
+        rgba = self.vector(cel, "rgba", f"{where}.color", None, n=4)
+        if rgba is None or any(not 0.0 <= v <= 1.0 for v in rgba):
+            raise self.error("rgba must be four numbers from 0 to 1", f"{where}.color.rgba", cel.get("rgba"))
+        return tuple(rgba)
+
+    def material(self, el: ET.Element, where: str) -> tuple[float, float, float, float] | None:
+        """A visual's colour: its material's own ``<color>``, or the named top-level material's."""
+        mel = el.find("material")
+        if mel is None:
+            return None
+        rgba = self.color(mel, f"{where}.material")
+        if rgba is None and mel.get("name"):
+            rgba = getattr(self, "materials", {}).get(mel.get("name"))
+        return rgba
+
+    def shape(self, el: ET.Element, where: str, *, with_color: bool = False) -> Shape:
         gel = el.find("geometry")
         if gel is None or len(gel) == 0:
             raise self.error("needs a <geometry> with a shape", where, has_value=False)
@@ -182,7 +208,7 @@ class _Parser:
                             scale=self.vector(g, "scale", w, (1.0, 1.0, 1.0)))
         else:
             raise self.error("unsupported geometry", f"{where}.geometry", g.tag)
-        return Shape(self.pose(el.find("origin"), where), geom)
+        return Shape(self.pose(el.find("origin"), where), geom, self.material(el, where) if with_color else None)
 
     def positive(self, values, where: str, what: str) -> None:
         if any(v <= 0 for v in values):
