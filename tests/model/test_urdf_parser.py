@@ -389,7 +389,8 @@ COLOURED = """<?xml version="1.0"?>
   <material name="blue"><color rgba="0 0 0.8 1"/></material>
   <link name="base">
     <visual><geometry><box size="1 1 1"/></geometry><material name="blue"/></visual>
-    <visual><geometry><sphere radius="0.1"/></geometry><material name="red"><color rgba="1 0 0 0.5"/></material></visual>
+    <visual><geometry><sphere radius="0.1"/></geometry>
+      <material name="red"><color rgba="1 0 0 0.5"/></material></visual>
     <visual><geometry><sphere radius="0.2"/></geometry></visual>
   </link>
 </robot>"""

@@ -22,15 +22,15 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   point continues the numbering, so the controller queues it behind the ones it has.
   With ``motion="download"`` nothing is streamed: a trajectory executor hands each goal to
   :meth:`download_motion`, sent in ROS-I's download handshake (TOPIC points from sequence -1 to -3;
-  the controller executes after the last). :meth:`stop_motion` sends STOP (-4); ``fault`` then says "stopping" until the controller has
-  answered and reports the robot at rest.
+  the controller executes after the last). :meth:`stop_motion` sends STOP (-4); ``fault`` then
+  says "stopping" until the controller has answered and reports the robot at rest.
 - **Faults**: ``fault`` says why the robot cannot be commanded now (``None`` when it can): the
   state stale for ``stale_after_s`` (ROS-I's action server aborts after 1 s without feedback), or
   a connection lost; and, for one :meth:`read`, that the controller refused a point (STATUS
   ``in_error``): enough for the executor to abort its goal, after which the next motion starts a
-  new trajectory, which clears the controller's error. Lost connections are re-opened in the background every ``retry_s``; the
-  fault clears when state flows again. The trajectory executor aborts its goal on a fault and
-  refuses new ones while it lasts.
+  new trajectory, which clears the controller's error. Lost connections are re-opened in the
+  background every ``retry_s``; the fault clears when state flows again. The trajectory executor
+  aborts its goal on a fault and refuses new ones while it lasts.
 
 Time: :meth:`advance` counts loop time (the controller runs on its own clock). Byte order:
 little-endian unless ``big_endian`` (the ``_bswap`` drivers). Joint ``i`` of a packet is joint

@@ -9,9 +9,9 @@ frequency by a least-squares sine fit (:func:`jointctl.tools.response_analysis.s
 The reference is position only (velocity reference 0), as the chapter's command topic gives it:
 the PID's derivative acts on the measured speed. A velocity loop's reference carries a slow
 position term as well, a tenth of the lowest frequency, so that gravity does not walk the joint to
-a limit; the fit takes the reference as given, so the loop's own response is what is measured. Simulated time; the amplitude keeps the joint
-inside its range (a third of the room to the nearer limit for a position loop; for a velocity loop
-the swing ``A/ω`` at the lowest frequency as well).
+a limit; the fit takes the reference as given, so the loop's own response is what is measured.
+Simulated time; the amplitude keeps the joint inside its range (a third of the room to the nearer
+limit for a position loop; for a velocity loop the swing ``A/ω`` at the lowest frequency as well).
 
 **Model.** The joint as a mass (or inertia) ``m`` with viscous damping ``b`` (the identified plant,
 or the URDF's mass and damping), driven by the controller as configured (``p``, ``i``, ``d`` of its

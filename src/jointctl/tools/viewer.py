@@ -4,8 +4,9 @@
 the simulated world: orbit, zoom and pick with the mouse while the loop runs. :class:`LiveViewer`
 is a loop observer that hands the world's state to the window about ``refresh_hz`` times a second
 of loop time; when an object is spawned the world's model changes and the window is opened again on
-the new one. Closing the window ends a run (a tuning session goes on). It needs a display (X11's ``DISPLAY`` or Wayland's
-``WAYLAND_DISPLAY``); without one, :func:`check_display` says so in one line before anything runs.
+the new one. Closing the window ends a run (a tuning session goes on). It needs a display (X11's
+``DISPLAY`` or Wayland's ``WAYLAND_DISPLAY``); without one, :func:`check_display` says so in one
+line before anything runs.
 """
 
 from __future__ import annotations

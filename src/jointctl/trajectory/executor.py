@@ -64,6 +64,7 @@ __all__ = ["BLOCK_CYCLES", "INTERPOLATIONS", "GoalHandle", "GoalResult", "GoalSt
 #: has no ``stream_rate_hz`` [s].
 DOWNLOAD_PERIOD_S = 0.02
 
+
 class TrajectoryExecutor(Controller):
     """Interpolates goals into references for one position controller per joint."""
 
