@@ -69,15 +69,7 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--hardware", choices=("sim", "industrial"), default="sim",
                        help="sim: the robot in MuJoCo (default); industrial: a robot controller that interpolates "
                             "by itself, over simple_message (with --robot-ip; controllers default to 'industrial')")
-    serve.add_argument("--robot-ip", help="with --hardware industrial: the robot controller's host name or IPv4 address")
-    serve.add_argument("--motion-port", type=int, default=11000, help="the controller's motion port (default 11000)")
-    serve.add_argument("--state-port", type=int, default=11002, help="the controller's state port (default 11002)")
-    serve.add_argument("--big-endian", action="store_true", help="the controller speaks big-endian (the _bswap drivers)")
-    serve.add_argument("--stream-rate-hz", type=float, default=50.0,
-                       help="points streamed to the controller per second (default 50)")
-    serve.add_argument("--motion", choices=("streaming", "download"), default="streaming",
-                       help="the controller's motion handshake: points streamed as a goal runs (default), or "
-                            "each goal downloaded whole and executed after its last point")
+    _industrial_arguments(serve)
 
     demo = sub.add_parser("demo", help="run every built-in experiment and write report.md")
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder")
@@ -146,7 +138,12 @@ def _parser() -> argparse.ArgumentParser:
     bode = sub.add_parser("bode", help="a joint loop's closed-loop frequency response by stepped sines, beside "
                                        "its model; bandwidth, resonance, margins")
     bode.add_argument("target", help="a built-in robot or a scenario YAML / name")
-    bode.add_argument("--controller", required=True, help="the joint position or velocity controller to sweep")
+    bode.add_argument("--controller", help="the joint position or velocity controller to sweep (simulated robots)")
+    bode.add_argument("--joint", help="with --hardware industrial: the joint whose controller's loop to sweep")
+    bode.add_argument("--hardware", choices=("sim", "industrial"), default="sim",
+                      help="sim: the robot in MuJoCo, in simulated time (default); industrial: an industrial "
+                           "controller over simple_message, in real time (its own servo loop, streamed positions)")
+    _industrial_arguments(bode)
     bode.add_argument("--controllers", default=None,
                       help="with a robot: the controller file to load (default: position, or velocity for a "
                            "velocity controller's name)")
@@ -175,6 +172,19 @@ def _parser() -> argparse.ArgumentParser:
     tune_gains.add_argument("--plant", type=Path, help="an identification's metrics.json (default: the robot model)")
     tune_gains.add_argument("--out", type=Path, default=Path("out/autotune"), help="output folder")
     return parser
+
+
+def _industrial_arguments(parser: argparse.ArgumentParser) -> None:
+    """How to reach an industrial controller (serve and bode with --hardware industrial)."""
+    parser.add_argument("--robot-ip", help="with --hardware industrial: the robot controller's host name or IPv4 address")
+    parser.add_argument("--motion-port", type=int, default=11000, help="the controller's motion port (default 11000)")
+    parser.add_argument("--state-port", type=int, default=11002, help="the controller's state port (default 11002)")
+    parser.add_argument("--big-endian", action="store_true", help="the controller speaks big-endian (the _bswap drivers)")
+    parser.add_argument("--stream-rate-hz", type=float, default=50.0,
+                        help="points streamed to the controller per second (default 50)")
+    parser.add_argument("--motion", choices=("streaming", "download"), default="streaming",
+                        help="the controller's motion handshake: points streamed as a goal runs (default), or "
+                             "each goal downloaded whole and executed after its last point")
 
 
 def _live_target_arguments(parser: argparse.ArgumentParser) -> None:
@@ -345,15 +355,45 @@ def _bode(args: argparse.Namespace) -> int:
                             value=args.f_min_hz)
     if not 2 <= args.points <= 200:
         raise JointCtlError("must be 2 to 200", field="--points", value=args.points)
-    plant = _plant_file(args.plant)
-    scenario = _loop_scenario(args)
     frequencies = np.logspace(np.log10(args.f_min_hz), np.log10(args.f_max_hz), args.points)
-    result = bode(scenario, args.controller, frequencies, plant=plant, amplitude=args.amplitude, out_dir=args.out)
+    if args.hardware == "industrial":
+        result = _bode_industrial(args, frequencies)
+    else:
+        if not args.controller:
+            raise JointCtlError("is required (the loop to sweep)", field="--controller")
+        result = bode(_loop_scenario(args), args.controller, frequencies, plant=_plant_file(args.plant),
+                      amplitude=args.amplitude, out_dir=args.out)
     shown = {k: v for k, v in result.items() if not isinstance(v, (list, dict))}
-    shown["model"] = {k: v for k, v in result["model"].items() if not isinstance(v, list)}
+    if "model" in result:
+        shown["model"] = {k: v for k, v in result["model"].items() if not isinstance(v, list)}
     print(json.dumps(shown, indent=2, default=float))
     print(f"wrote {args.out}/", file=sys.stderr)
     return 0
+
+
+def _bode_industrial(args: argparse.Namespace, frequencies) -> dict:
+    """``bode --hardware industrial``: the controller's own position loop, measured over the socket in
+    real time (no model: its servos are the controller's)."""
+    from jointctl.identification.frequency_response import analyse, measure_servoed, write_bode
+    from jointctl.scenario.session import Session
+    from jointctl.scenario.spec import builtin_robots, scenario_for_robot
+
+    if not args.joint:
+        raise JointCtlError("is required with --hardware industrial", field="--joint")
+    if args.target not in builtin_robots():
+        raise JointCtlError("--hardware industrial needs a built-in robot", field="target", value=args.target)
+    scenario = scenario_for_robot(args.target, "industrial", [*args.overrides, "start_controllers=[joint_state_controller]"])
+    hardware = _industrial_hardware(args, scenario)
+    try:
+        session = Session(scenario, hardware=hardware, realtime=True)
+        points, context = measure_servoed(session, args.joint, frequencies, amplitude=args.amplitude)
+    finally:
+        hardware.close()
+    result = analyse(points, None)
+    result.update(controller=f"{args.robot_ip}:{args.motion_port} (industrial controller)", plant_source=None,
+                  **context)
+    write_bode(args.out, result, f"{args.joint} through the industrial controller at {args.robot_ip}")
+    return result
 
 
 def _plant_file(path: Path | None) -> dict | None:

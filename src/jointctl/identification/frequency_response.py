@@ -133,11 +133,11 @@ class Point:
 
 def measure(scenario: Scenario, controller_name: str, frequencies_hz, *, amplitude: float | None = None,
             settle_s: float = 1.5, measure_periods: int = 4, measure_s: float = 1.0) -> tuple[list[Point], dict]:
-    """Stepped-sine measurement of ``controller_name``'s closed loop (see the module docstring);
-    (points, context) where context holds the loop, joint, amplitude and simulated time."""
-    frequencies = [float(f) for f in frequencies_hz]
+    """Stepped-sine measurement of ``controller_name``'s closed loop on the scenario's simulated robot,
+    in simulated time (see the module docstring); (points, context) where context holds the loop,
+    joint, amplitude, gains and the loop time it took."""
     session = Session(scenario)
-    manager, hardware, robot = session.manager, session.hardware, session.robot
+    manager = session.manager
     try:
         controller = manager.controller(controller_name)
     except Exception:
@@ -150,12 +150,50 @@ def measure(scenario: Scenario, controller_name: str, frequencies_hz, *, amplitu
     else:
         raise ConfigError("must be an effort position or velocity controller", field="--controller",
                           value=controller_name)
+    points, context = sweep(session, controller.joint, frequencies_hz, controller.set_reference, loop=loop,
+                            amplitude=amplitude, settle_s=settle_s, measure_periods=measure_periods,
+                            measure_s=measure_s)
+    gains = controller.pid.gains
+    context["gains"] = {"p": gains.p, "i": gains.i, "d": gains.d}
+    return points, context
+
+
+def measure_servoed(session: Session, joint: str, frequencies_hz, *, amplitude: float | None = None,
+                    settle_s: float = 1.5, measure_periods: int = 4, measure_s: float = 1.0) -> tuple[list[Point], dict]:
+    """The same measurement on hardware that servos its joints itself (an industrial controller behind
+    :class:`~jointctl.hardware.industrial.IndustrialHardware`): the sine goes straight to the joint's
+    position command interface, the response is the position the hardware reports. ``session`` must
+    start no controller that commands the joint; it runs as it is paced (the wall clock, for real
+    hardware)."""
+    from jointctl.hardware.interface import POSITION
+
+    hardware = session.hardware
+    index = hardware.joint_index(joint, field="--joint")
+    if POSITION not in hardware.command_interfaces(joint):
+        raise ConfigError("the hardware has no position command interface for it", field="--joint", value=joint)
+    owner = session.manager.commanding(joint)
+    if owner is not None:
+        raise ConfigError(f"controller {owner.name!r} commands it; start none that does", field="--joint", value=joint)
+    command = hardware.command_buffer(POSITION)
+
+    def set_reference(q: float) -> None:
+        command[index] = q
+
+    return sweep(session, joint, frequencies_hz, set_reference, loop="position", amplitude=amplitude,
+                 settle_s=settle_s, measure_periods=measure_periods, measure_s=measure_s)
+
+
+def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: str, amplitude: float | None,
+          settle_s: float, measure_periods: int, measure_s: float) -> tuple[list[Point], dict]:
+    """Run the stepped sines on ``session`` (any hardware), handing each cycle's reference to
+    ``set_reference``; (points, context)."""
+    frequencies = [float(f) for f in frequencies_hz]
+    hardware, robot = session.hardware, session.robot
     period = session.loop.period_s
     nyquist = 0.5 / period
     if not frequencies or min(frequencies) <= 0 or max(frequencies) >= nyquist:
         raise IdentificationError(f"frequencies must be positive and below the loop's Nyquist {nyquist:g} Hz",
                                   field="frequencies_hz", value=frequencies)
-    joint = controller.joint
     index = hardware.joint_index(joint)
     hardware.read()
     rest = hardware.position[index]
@@ -173,7 +211,7 @@ def measure(scenario: Scenario, controller_name: str, frequencies_hz, *, amplitu
                                   field="amplitude", value=amplitude)
     # One schedule: each frequency's sine from its start time, settling then measuring whole periods.
     schedule = []
-    t0 = 0.5
+    t0 = session.loop.time_s + 0.5
     for f in frequencies:
         settle = max(settle_s, 2.0 / f)
         span = math.ceil(max(measure_periods, measure_s * f)) / f
@@ -202,17 +240,18 @@ def measure(scenario: Scenario, controller_name: str, frequencies_hz, *, amplitu
 
     def drive(time_s: float) -> None:
         given[0] = reference_at(time_s) + hold_per_s * (rest - hardware.position[index])
-        controller.set_reference(given[0])
+        set_reference(given[0])
 
     def record(time_s: float) -> None:
         times.append(time_s)
         references.append(given[0])
         responses.append(measured[index])
 
+    started = session.loop.time_s
     session.loop.add_input(drive)
     session.loop.add_observer(record)
     with session:
-        session.run(t0 + 0.1)
+        session.run(t0 + 0.1 - started)
     # Reference and response at the same loop time: the response measured at the start of a cycle,
     # the reference that cycle's (held over the period that follows).
     t, r, y = np.array(times), np.array(references), np.array(responses)
@@ -222,9 +261,8 @@ def measure(scenario: Scenario, controller_name: str, frequencies_hz, *, amplitu
         fit = sinusoid_response(t[window] - start, r[window], y[window], frequency_hz=f,
                                 start_s=measure_from - start)
         points.append(Point(f, 20 * math.log10(fit.amplitude_ratio), -fit.phase_lag_deg))
-    context = {"loop": loop, "joint": joint, "amplitude": amplitude, "rest": rest, "simulated_s": t0,
-               "period_s": period, "gains": {"p": controller.pid.gains.p, "i": controller.pid.gains.i,
-                                             "d": controller.pid.gains.d}}
+    context = {"loop": loop, "joint": joint, "amplitude": amplitude, "rest": rest, "simulated_s": t0 - started,
+               "period_s": period}
     return points, context
 
 
@@ -337,4 +375,4 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
     return path
 
 
-__all__ = ["LoopModel", "Point", "analyse", "bode", "measure", "write_bode"]
+__all__ = ["LoopModel", "Point", "analyse", "bode", "measure", "measure_servoed", "sweep", "write_bode"]
