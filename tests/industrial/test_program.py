@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 import struct
 import threading
-import time
 
 import pytest
 from hypothesis import HealthCheck, given, settings

@@ -32,9 +32,8 @@ import numpy as np
 import yaml
 from scipy.optimize import fsolve
 
-from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
 from jointctl.errors import ConfigError
-from jointctl.identification.frequency_response import LoopModel, _crossing, _model_plant, measure
+from jointctl.identification.frequency_response import LoopModel, _crossing, _model_plant, loop_controller, measure
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
@@ -116,19 +115,8 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
             raise IdentificationError("must be a positive number", field=name, value=value)
     scenario: Scenario = scenario_for(())
     session = Session(scenario)
-    manager, hardware, robot = session.manager, session.hardware, session.robot
-    try:
-        controller = manager.controller(controller_name)
-    except Exception:
-        raise ConfigError(f"no such controller (started: {', '.join(c.name for c in manager.active)})",
-                          field="--controller", value=controller_name) from None
-    if isinstance(controller, JointPositionController):
-        loop = "position"
-    elif isinstance(controller, JointVelocityController):
-        loop = "velocity"
-    else:
-        raise ConfigError("must be an effort position or velocity controller", field="--controller",
-                          value=controller_name)
+    hardware = session.hardware
+    controller, loop = loop_controller(session.manager, controller_name)
     joint = controller.joint
     hardware.read()
     rest = hardware.position[hardware.joint_index(joint)]

@@ -137,25 +137,39 @@ def measure(scenario: Scenario, controller_name: str, frequencies_hz, *, amplitu
     in simulated time (see the module docstring); (points, context) where context holds the loop,
     joint, amplitude, gains and the loop time it took."""
     session = Session(scenario)
-    manager = session.manager
-    try:
-        controller = manager.controller(controller_name)
-    except Exception:
-        raise ConfigError(f"no such controller (started: {', '.join(c.name for c in manager.active)})",
-                          field="--controller", value=controller_name) from None
-    if isinstance(controller, JointPositionController):
-        loop = "position"
-    elif isinstance(controller, JointVelocityController):
-        loop = "velocity"
-    else:
-        raise ConfigError("must be an effort position or velocity controller", field="--controller",
-                          value=controller_name)
+    controller, loop = loop_controller(session.manager, controller_name)
     points, context = sweep(session, controller.joint, frequencies_hz, controller.set_reference, loop=loop,
                             amplitude=amplitude, settle_s=settle_s, measure_periods=measure_periods,
                             measure_s=measure_s)
     gains = controller.pid.gains
     context["gains"] = {"p": gains.p, "i": gains.i, "d": gains.d}
     return points, context
+
+
+def loop_controller(manager, name: str):
+    """(controller, "position" | "velocity") for ``name``, an effort position or velocity controller
+    of ``manager``; a ConfigError naming ``--controller`` otherwise."""
+    try:
+        controller = manager.controller(name)
+    except Exception:
+        raise ConfigError(f"no such controller (started: {', '.join(c.name for c in manager.active)})",
+                          field="--controller", value=name) from None
+    if isinstance(controller, JointPositionController):
+        return controller, "position"
+    if isinstance(controller, JointVelocityController):
+        return controller, "velocity"
+    raise ConfigError("must be an effort position or velocity controller", field="--controller", value=name)
+
+
+def joint_limits(spec) -> tuple[float, float, float]:
+    """(lower, upper [m or rad], velocity [per s]) of a model joint; ±inf / inf where it has none."""
+    lim = spec.limits
+    lower = lim.lower if lim is not None and lim.lower is not None else -math.inf
+    upper = lim.upper if lim is not None and lim.upper is not None else math.inf
+    if spec.type == "continuous":
+        lower, upper = -math.inf, math.inf
+    vmax = lim.velocity if lim is not None and lim.velocity > 0 else math.inf
+    return float(lower), float(upper), float(vmax)
 
 
 def measure_servoed(session: Session, joint: str, frequencies_hz, *, amplitude: float | None = None,
@@ -197,10 +211,7 @@ def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: 
     index = hardware.joint_index(joint)
     hardware.read()
     rest = hardware.position[index]
-    spec = robot.joint(joint)
-    lim = spec.limits
-    lower = lim.lower if lim is not None and lim.lower is not None and spec.type != "continuous" else -math.inf
-    upper = lim.upper if lim is not None and lim.upper is not None and spec.type != "continuous" else math.inf
+    lower, upper, _ = joint_limits(robot.joint(joint))
     room = min(rest - lower, upper - rest)
     room = 1.0 if math.isinf(room) else room
     safe = room / 3 if loop == "position" else room / 3 * 2 * math.pi * min(frequencies)
@@ -375,4 +386,5 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
     return path
 
 
-__all__ = ["LoopModel", "Point", "analyse", "bode", "measure", "measure_servoed", "sweep", "write_bode"]
+__all__ = ["LoopModel", "Point", "analyse", "bode", "joint_limits", "loop_controller", "measure", "measure_servoed",
+           "sweep", "write_bode"]

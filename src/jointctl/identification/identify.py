@@ -26,6 +26,7 @@ import numpy as np
 from jointctl.control.joint_controllers import JointPositionController
 from jointctl.errors import ConfigError
 from jointctl.identification.excitation import Chirp, safe_chirp
+from jointctl.identification.frequency_response import joint_limits
 from jointctl.identification.plant_fit import IdentificationError, PlantFit, fit_plant
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
@@ -56,7 +57,7 @@ def identify_on_robot(scenario: Scenario, joint: str, *, out_dir: str | Path | N
     spec = robot.joint(joint)
     index = hardware.joint_index(joint)
     hardware.read()
-    lower, upper, vmax = _limits(spec)
+    lower, upper, vmax = joint_limits(spec)
     chirp = safe_chirp(hardware.position[index], lower, upper, vmax, amplitude=amplitude, duration_s=duration_s,
                        f_start_hz=f_start_hz, f_end_hz=f_end_hz)
     band = GUARD_FRACTION * (upper - lower) if math.isfinite(upper - lower) else math.inf
@@ -113,16 +114,6 @@ def identify_trace(path: str | Path, joint: str, joint_type: str, *, out_dir: st
     if out_dir is not None:
         _write(out_dir, joint, fit, metrics, t, q, qd, u)
     return fit, metrics
-
-
-def _limits(spec) -> tuple[float, float, float]:
-    lim = spec.limits
-    lower = lim.lower if lim is not None and lim.lower is not None else -math.inf
-    upper = lim.upper if lim is not None and lim.upper is not None else math.inf
-    if spec.type == "continuous":
-        lower, upper = -math.inf, math.inf
-    vmax = lim.velocity if lim is not None and lim.velocity > 0 else math.inf
-    return float(lower), float(upper), float(vmax)
 
 
 def _metrics(fit: PlantFit, joint: str) -> dict:
