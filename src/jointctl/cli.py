@@ -520,11 +520,17 @@ def _tune(args: argparse.Namespace) -> int:
 
         check_display()
     tuner = Tuner(_live_scenario(args), out_dir=args.out)
+    viewer = None
     if args.view:
         if tuner.session.world is None:
             raise JointCtlError("the viewer shows the simulation; this robot has none", field="--view")
-        tuner.loop.add_observer(LiveViewer(tuner.session.world, tuner.loop, stop_when_closed=False))
-    serve_tuning(tuner, host=args.host, port=args.port, speed=args.speed)
+        viewer = LiveViewer(tuner.session.world, tuner.loop, stop_when_closed=False)
+        tuner.loop.add_observer(viewer)
+    try:
+        serve_tuning(tuner, host=args.host, port=args.port, speed=args.speed)
+    finally:
+        if viewer is not None:
+            viewer.close()  # its window's thread would keep the process alive
     return 0
 
 

@@ -12,6 +12,8 @@ line before anything runs.
 from __future__ import annotations
 
 import os
+import threading
+import time
 
 from jointctl.errors import JointCtlError
 
@@ -67,10 +69,21 @@ class LiveViewer:
             return
         self._handle.sync()
 
-    def close(self) -> None:
-        if self._handle is not None:
-            self._handle.close()
-            self._handle = None
+    def close(self, timeout_s: float = 3.0) -> None:
+        """Close the window and wait (up to ``timeout_s``) for its thread to let go: a window still
+        drawing while the interpreter exits can hang it (GLFW is torn down at exit)."""
+        if self._handle is None:
+            return
+        import mujoco.viewer
+
+        handle, self._handle = self._handle, None
+        handle.close()
+        # The window's thread runs mujoco.viewer's _launch_internal; it must end before GLFW is
+        # terminated at exit, or the interpreter hangs in glfw.terminate.
+        deadline = time.monotonic() + timeout_s
+        for thread in threading.enumerate():
+            if getattr(thread, "_target", None) is mujoco.viewer._launch_internal:
+                thread.join(max(0.0, deadline - time.monotonic()))
 
 
 __all__ = ["LiveViewer", "ViewerUnavailable", "check_display"]
