@@ -22,6 +22,7 @@ and value, with exit status 2.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -116,18 +117,20 @@ def _parser() -> argparse.ArgumentParser:
     controller.add_argument("--big-endian", action="store_true", help="speak big-endian (for the _bswap drivers)")
     controller.add_argument("--state-rate-hz", type=float, default=50.0,
                             help="joint state and status reports per second (default 50)")
-    identify = sub.add_parser("identify", help="excite a joint (or read a recorded trace.csv) and fit its inertia, "
-                                               "damping, Coulomb friction and gravity load")
-    identify.add_argument("target", help="a built-in robot, a scenario YAML / name, or a trace.csv")
+    identify = sub.add_parser("identify", help="excite a joint (or read a recorded trace.csv or rosbag) and fit its "
+                                               "inertia, damping, Coulomb friction and gravity load")
+    identify.add_argument("target", help="a built-in robot, a scenario YAML / name, a trace.csv or a .bag")
     identify.add_argument("--joint", required=True, help="the joint to identify")
+    _loop_hardware_arguments(identify)
+    identify.add_argument("--topic", help="with a bag: its JointState topic (default: the one naming the joint)")
     identify.add_argument("--controllers", default="position",
                           help="with a robot: the controller file whose position controller excites the joint "
                                "(default position)")
     identify.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                           help="override a scenario field, e.g. initial_positions.joint1=-0.3 (repeatable)")
     identify.add_argument("--joint-type", choices=("prismatic", "revolute", "continuous"),
-                          help="with a trace: the joint's type (default: read from --robot)")
-    identify.add_argument("--robot", help="with a trace: the built-in robot it was recorded on")
+                          help="with a trace or bag: the joint's type (default: read from --robot)")
+    identify.add_argument("--robot", help="with a trace or bag: the built-in robot it was recorded on")
     identify.add_argument("--amplitude", type=float, help="excitation amplitude [m or rad] (default: the safe one)")
     identify.add_argument("--duration-s", type=float, default=10.0, help="excitation length [s] (default 10)")
     identify.add_argument("--f-start-hz", type=float, default=0.2, help="chirp start frequency (default 0.2 Hz)")
@@ -138,12 +141,9 @@ def _parser() -> argparse.ArgumentParser:
     bode = sub.add_parser("bode", help="a joint loop's closed-loop frequency response by stepped sines, beside "
                                        "its model; bandwidth, resonance, margins")
     bode.add_argument("target", help="a built-in robot or a scenario YAML / name")
-    bode.add_argument("--controller", help="the joint position or velocity controller to sweep (simulated robots)")
+    bode.add_argument("--controller", help="the joint position or velocity controller to sweep (sim and ros)")
     bode.add_argument("--joint", help="with --hardware industrial: the joint whose controller's loop to sweep")
-    bode.add_argument("--hardware", choices=("sim", "industrial"), default="sim",
-                      help="sim: the robot in MuJoCo, in simulated time (default); industrial: an industrial "
-                           "controller over simple_message, in real time (its own servo loop, streamed positions)")
-    _industrial_arguments(bode)
+    _loop_hardware_arguments(bode)
     bode.add_argument("--controllers", default=None,
                       help="with a robot: the controller file to load (default: position, or velocity for a "
                            "velocity controller's name)")
@@ -161,6 +161,7 @@ def _parser() -> argparse.ArgumentParser:
                                                  "model and on the robot, written as the chapter's YAML")
     tune_gains.add_argument("target", help="a built-in robot or a scenario YAML / name")
     tune_gains.add_argument("--controller", required=True, help="the joint position or velocity controller to tune")
+    _loop_hardware_arguments(tune_gains)
     tune_gains.add_argument("--controllers", default=None, help="with a robot: the controller file (default: "
                                                                 "position, or velocity for a velocity controller)")
     tune_gains.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -172,6 +173,18 @@ def _parser() -> argparse.ArgumentParser:
     tune_gains.add_argument("--plant", type=Path, help="an identification's metrics.json (default: the robot model)")
     tune_gains.add_argument("--out", type=Path, default=Path("out/autotune"), help="output folder")
     return parser
+
+
+def _loop_hardware_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where identify, bode and autotune find the joint's loop."""
+    parser.add_argument("--hardware", choices=("sim", "ros", "industrial"), default="sim",
+                        help="sim: the robot in MuJoCo, in simulated time (default); ros: the robot a node serves "
+                             "on the ROS graph (jointctl serve), through its topics and dynamic_reconfigure, in "
+                             "real time; industrial: an industrial controller over simple_message (bode only: "
+                             "its own servo loop, streamed positions)")
+    parser.add_argument("--namespace", help="with --hardware ros: the served robot's namespace (default: the "
+                                            "robot's controller file's, e.g. one_DOF_robot)")
+    _industrial_arguments(parser)
 
 
 def _industrial_arguments(parser: argparse.ArgumentParser) -> None:
@@ -327,13 +340,32 @@ def _controller(args: argparse.Namespace) -> int:
 
 
 def _identify(args: argparse.Namespace) -> int:
-    from jointctl.identification.identify import identify_on_robot, identify_trace
+    from jointctl.identification.identify import identify_on_robot, identify_states, identify_trace
     from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
 
     friction = not args.no_friction
-    if args.target.endswith(".csv"):
+    if args.target.endswith((".csv", ".bag")):
         joint_type = args.joint_type or _joint_type(args.robot, args.joint)
-        _, metrics = identify_trace(args.target, args.joint, joint_type, out_dir=args.out, fit_friction=friction)
+        if args.target.endswith(".csv"):
+            _, metrics = identify_trace(args.target, args.joint, joint_type, out_dir=args.out, fit_friction=friction)
+        else:
+            from jointctl.ros.bag_trace import read_joint
+
+            topic, *states = read_joint(args.target, args.joint, args.topic)
+            _, metrics = identify_states(*states, args.joint, joint_type, source=f"{args.target}:{topic}",
+                                         out_dir=args.out, fit_friction=friction)
+    elif args.hardware == "industrial":
+        raise JointCtlError("an industrial controller reports no joint efforts (simple_message's JOINT_POSITION and "
+                            "JOINT_FEEDBACK carry none) and servos the joint itself: there is no plant to fit; "
+                            "measure its loop with jointctl bode --hardware industrial", field="--hardware",
+                            value="industrial")
+    elif args.hardware == "ros":
+        from jointctl.identification.identify import identify_servoed
+
+        with _served(args, joint=args.joint) as (session, _):
+            _, metrics = identify_servoed(session, args.joint, out_dir=args.out, amplitude=args.amplitude,
+                                          duration_s=args.duration_s, f_start_hz=args.f_start_hz,
+                                          f_end_hz=args.f_end_hz, fit_friction=friction)
     else:
         scenario = (scenario_for_robot(args.target, args.controllers, args.overrides)
                     if args.target in builtin_robots() else load_scenario(args.target, args.overrides))
@@ -343,6 +375,37 @@ def _identify(args: argparse.Namespace) -> int:
     print(json.dumps(metrics, indent=2))
     print(f"wrote {args.out}/", file=sys.stderr)
     return 0
+
+
+@contextlib.contextmanager
+def _served(args: argparse.Namespace, *, controller: str | None = None, joint: str | None = None):
+    """(session, controller name) on the robot a node serves on the ROS graph (``--hardware ros``):
+    the built-in robot's model, its loop found on the graph, the session paced to the wall clock;
+    the loop's reference put back where it was on the way out."""
+    from jointctl.control.manager import read_yaml
+    from jointctl.ros.served_hardware import connect
+    from jointctl.scenario.session import Session
+    from jointctl.scenario.spec import builtin_robots, scenario_for_robot
+
+    if args.target not in builtin_robots():
+        raise JointCtlError("--hardware ros needs a built-in robot (its model)", field="target", value=args.target)
+    scenario = scenario_for_robot(args.target, "position", [*args.overrides, "start_controllers=[joint_state_controller]"])
+    namespace = args.namespace
+    if namespace is None:
+        tree = read_yaml(scenario.controller_file)
+        namespace = next(iter(tree)) if isinstance(tree, dict) and len(tree) == 1 else None
+        if namespace is None:
+            raise JointCtlError("the robot's controller file has no single namespace: give it", field="--namespace")
+    from jointctl.model.loader import load_robot_model
+
+    names = [j.name for j in load_robot_model(scenario.robot.description).movable_joints]
+    hardware, name = connect(namespace, names, controller, joint=joint)
+    try:
+        yield Session(scenario, hardware=hardware, realtime=True), name
+    finally:
+        hardware.hold(hardware.set_points)
+        hardware.write()
+        hardware.close()
 
 
 def _bode(args: argparse.Namespace) -> int:
@@ -358,6 +421,8 @@ def _bode(args: argparse.Namespace) -> int:
     frequencies = np.logspace(np.log10(args.f_min_hz), np.log10(args.f_max_hz), args.points)
     if args.hardware == "industrial":
         result = _bode_industrial(args, frequencies)
+    elif args.hardware == "ros":
+        result = _bode_served(args, frequencies)
     else:
         if not args.controller:
             raise JointCtlError("is required (the loop to sweep)", field="--controller")
@@ -396,6 +461,24 @@ def _bode_industrial(args: argparse.Namespace, frequencies) -> dict:
     return result
 
 
+def _bode_served(args: argparse.Namespace, frequencies) -> dict:
+    """``bode --hardware ros``: the served node's loop through its command topic and joint states, in
+    real time, beside the model with the gains its dynamic_reconfigure server holds."""
+    from jointctl.identification.frequency_response import compare, measure_servoed
+
+    if not args.controller:
+        raise JointCtlError("is required (the loop to sweep)", field="--controller")
+    with _served(args, controller=args.controller) as (session, name):
+        hardware = session.hardware
+        joint = next(j for j, (_, c) in hardware.controllers.items() if c == name)
+        points, context = measure_servoed(session, joint, frequencies, amplitude=args.amplitude)
+        context["gains"] = hardware.gains(name)
+        pose = dict(zip(hardware.joint_names, hardware.position))
+        pose[joint] = context["rest"]
+        return compare(points, context, f"/{hardware.namespace}/{name}", _plant_file(args.plant), session.robot,
+                       pose, out_dir=args.out)
+
+
 def _plant_file(path: Path | None) -> dict | None:
     if path is None:
         return None
@@ -418,9 +501,20 @@ def _loop_scenario(args: argparse.Namespace, overrides=()):
 def _autotune(args: argparse.Namespace) -> int:
     from jointctl.identification.autotune import autotune
 
-    result = autotune(lambda overrides: _loop_scenario(args, overrides), args.controller,
-                      bandwidth_hz=args.bandwidth_hz, zeta=args.zeta, step=args.step, plant=_plant_file(args.plant),
-                      out_dir=args.out)
+    if args.hardware == "industrial":
+        raise JointCtlError("an industrial controller servos its joints with gains of its own, which simple_message "
+                            "cannot read or set: there is nothing of jointctl's to tune", field="--hardware",
+                            value="industrial")
+    if args.hardware == "ros":
+        from jointctl.identification.autotune import autotune_servoed
+
+        with _served(args, controller=args.controller) as (session, name):
+            result = autotune_servoed(session, name, bandwidth_hz=args.bandwidth_hz, zeta=args.zeta, step=args.step,
+                                      plant=_plant_file(args.plant), out_dir=args.out)
+    else:
+        result = autotune(lambda overrides: _loop_scenario(args, overrides), args.controller,
+                          bandwidth_hz=args.bandwidth_hz, zeta=args.zeta, step=args.step,
+                          plant=_plant_file(args.plant), out_dir=args.out)
     print(json.dumps(result, indent=2, default=float))
     print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from jointctl.identification.plant_fit import IdentificationError, fit_plant
+from jointctl.identification.plant_fit import IdentificationError, fit_plant, resample_uniform
 
 DT = 0.001
 
@@ -90,3 +90,47 @@ def test_bad_input_is_refused_naming_the_field(change, field) -> None:
     with pytest.raises(IdentificationError) as info:
         fit_plant(**args)
     assert info.value.field == field
+
+
+def sampled_sine(rate_hz: float, frequency_hz: float, seconds: float = 8.0):
+    """Exact samples at ``rate_hz`` of q = 0.2·sin(ωt) + 0.05·sin(3.1ωt) and the effort of the model
+    2.5·q̈ + 7·q̇ + 1.5·sign(q̇) + 9.9 (its true acceleration, not a difference)."""
+    t = np.arange(0.0, seconds, 1.0 / rate_hz)
+    w = 2 * np.pi * frequency_hz
+    q = 0.2 * np.sin(w * t) + 0.05 * np.sin(3.1 * w * t)
+    qd = 0.2 * w * np.cos(w * t) + 0.05 * 3.1 * w * np.cos(3.1 * w * t)
+    qdd = -0.2 * w**2 * np.sin(w * t) - 0.05 * (3.1 * w) ** 2 * np.sin(3.1 * w * t)
+    return t, q, qd, 2.5 * qdd + 7.0 * qd + 1.5 * np.sign(qd) + 9.9
+
+
+def test_sparse_states_take_central_differences_within_their_truncation_error() -> None:
+    # Joint states at 50 Hz: a central difference of a sine of ω reads its acceleration sin(ωh)/(ωh) low,
+    # (ωh)²/6 = 0.3 % at 3.1 Hz; a forward one sits half a sample late, which turns inertia into damping.
+    t, q, qd, u = sampled_sine(50.0, 1.0)
+    central = fit_plant(t, q, qd, u, joint_type="prismatic", acceleration="central")
+    bound = (2 * np.pi * 3.1 * 0.02) ** 2 / 6
+    assert central.inertia == pytest.approx(2.5, rel=bound) and central.damping == pytest.approx(7.0, rel=bound)
+    assert central.acceleration == "central"
+    forward = fit_plant(t, q, qd, u, joint_type="prismatic", max_shift_cycles=0)
+    assert abs(forward.damping - 7.0) > 10 * abs(central.damping - 7.0)
+
+
+def test_states_with_a_lost_message_are_put_on_a_uniform_grid() -> None:
+    t, q, qd, u = sampled_sine(1000.0, 1.0, seconds=4.0)
+    keep = np.ones(t.size, dtype=bool)
+    keep[[500, 1700, 1701]] = False  # three states lost on the way
+    jitter = np.where(np.arange(t.size) % 7 == 0, 2e-5, 0.0)  # and stamps a little off the grid
+    grid, *columns = resample_uniform((t + jitter)[keep], q[keep], qd[keep], u[keep])
+    assert np.allclose(np.diff(grid), 0.001, rtol=1e-3)
+    fit = fit_plant(grid, *columns, joint_type="prismatic", acceleration="central")
+    assert fit.inertia == pytest.approx(2.5, rel=0.01) and fit.damping == pytest.approx(7.0, rel=0.01)
+
+
+def test_a_gap_in_the_states_is_refused_naming_where() -> None:
+    t, q, qd, u = sampled_sine(1000.0, 1.0, seconds=2.0)
+    keep = (t < 0.9) | (t > 1.0)  # 100 ms missing
+    with pytest.raises(IdentificationError, match=r"a gap of 0\.1\d* s .* at t = 0\.899") as info:
+        resample_uniform(t[keep], q[keep])
+    assert info.value.field == "time_s"
+    with pytest.raises(IdentificationError, match="forward or central"):
+        fit_plant(t, q, qd, u, joint_type="prismatic", acceleration="backward")

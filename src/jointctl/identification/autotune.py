@@ -33,7 +33,8 @@ import yaml
 from scipy.optimize import fsolve
 
 from jointctl.errors import ConfigError
-from jointctl.identification.frequency_response import LoopModel, _crossing, _model_plant, loop_controller, measure
+from jointctl.identification.frequency_response import (LoopModel, _crossing, loop_controller, measure,
+                                                         measure_servoed, model_plant, plant_of)
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
@@ -110,28 +111,49 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
     """Tune ``controller_name`` of the scenario ``scenario_for(overrides)`` gives (see the module
     docstring); the metrics (gains, predicted and simulated figures). ``plant`` as for
     :func:`jointctl.identification.frequency_response.bode`."""
-    for name, value in (("bandwidth_hz", bandwidth_hz), ("step", step)):
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise IdentificationError("must be a positive number", field=name, value=value)
+    _check_spec(bandwidth_hz, step)
     scenario: Scenario = scenario_for(())
     session = Session(scenario)
     hardware = session.hardware
     controller, loop = loop_controller(session.manager, controller_name)
     joint = controller.joint
     hardware.read()
-    rest = hardware.position[hardware.joint_index(joint)]
-    period = session.loop.period_s
+    pose = {name: hardware.position[k] for k, name in enumerate(hardware.joint_names)}
+    gravity = None if plant is not None else _gravity_load(session.robot, pose, joint, scenario.gravity_m_s2)
+    gains = controller.pid.gains
+    result = tune(controller_name, joint, loop, session.loop.period_s, plant, session.robot, pose, gravity,
+                  controller.effort_limit, {"p": gains.p, "i": gains.i, "d": gains.d}, bandwidth_hz=bandwidth_hz,
+                  zeta=zeta, step=step)
+    session.close()
+    if check_on_robot:
+        result["robot"] = _check_on_robot(scenario_for, controller_name, result["gains"], loop, step, bandwidth_hz)
+    if out_dir is not None:
+        source = Path(scenario.controller_file)
+        _write(out_dir, source.name, yaml.safe_load(source.read_text()), controller_name, result)
+    return result
+
+
+def _check_spec(bandwidth_hz, step) -> None:
+    for name, value in (("bandwidth_hz", bandwidth_hz), ("step", step)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise IdentificationError("must be a positive number", field=name, value=value)
+
+
+def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: dict | None, robot, pose: dict,
+         gravity: float | None, effort_limit: float, previous_gains: dict, *, bandwidth_hz: float, zeta: float,
+         step: float) -> dict:
+    """Design the gains for the spec and predict them on the sampled model (no robot involved): the
+    plant from ``plant`` (an identification's metrics, its ``gravity_load_n`` the load) or else
+    ``robot``'s model at ``pose`` with ``gravity`` [N or N·m, magnitude] as the load. Refused when
+    a step of ``step`` would exceed ``effort_limit``, naming the bandwidth it allows."""
     if plant is not None:
-        mass = plant.get("mass_kg", plant.get("inertia_kg_m2"))
-        damping = plant.get("damping_n_s_m", plant.get("damping_n_m_s_rad"))
-        gravity = abs(plant.get("gravity_load_n", 0.0))
+        mass, damping = plant_of(plant)
+        gravity = abs(float(plant.get("gravity_load_n", 0.0)))
         source = "identified"
     else:
-        mass, damping = _model_plant(scenario, joint, rest)
-        gravity = _gravity_load(session, joint)
+        mass, damping = model_plant(robot, joint, pose)
         source = "robot model"
-    effort_limit = controller.effort_limit
-    gains = design(mass, damping, loop=loop, bandwidth_hz=bandwidth_hz, zeta=zeta, period_s=period)
+    gains = design(mass, damping, loop=loop, bandwidth_hz=bandwidth_hz, zeta=zeta, period_s=period_s)
     need = gains["p"] * step + gravity
     if need > effort_limit:
         achievable = _achievable_hz(mass, damping, loop, zeta, (effort_limit - gravity) / step)
@@ -139,34 +161,63 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
             f"a step of {step:g} would ask {need:.4g} of the joint's effort limit {effort_limit:g} (p {gains['p']:.4g}"
             f" and a gravity load of {gravity:.4g}); the most this step allows is {achievable:.3g} Hz",
             field="bandwidth_hz", value=bandwidth_hz)
-    model = LoopModel(mass, damping, gains["p"], gains["i"], gains["d"], period, loop)
+    model = LoopModel(mass, damping, gains["p"], gains["i"], gains["d"], period_s, loop)
     predicted = {"bandwidth_hz": _model_bandwidth(model, bandwidth_hz)}
     if loop == "position":
         predicted["overshoot_pct"] = 100 * _model_overshoot(model)
-    result = {"controller": controller_name, "joint": joint, "loop": loop, "plant_source": source, "mass": mass,
-              "damping": damping, "gravity_load": gravity, "effort_limit": effort_limit, "step": step,
-              "spec": {"bandwidth_hz": bandwidth_hz, "zeta": zeta if loop == "position" else None,
-                       "overshoot_pct": 100 * overshoot_of(zeta) if loop == "position" else None},
-              "gains": gains, "model": predicted, "previous_gains": {"p": controller.pid.gains.p,
-                                                                     "i": controller.pid.gains.i,
-                                                                     "d": controller.pid.gains.d}}
-    session.close()
+    return {"controller": controller_name, "joint": joint, "loop": loop, "plant_source": source, "mass": mass,
+            "damping": damping, "gravity_load": gravity, "effort_limit": effort_limit, "step": step,
+            "spec": {"bandwidth_hz": bandwidth_hz, "zeta": zeta if loop == "position" else None,
+                     "overshoot_pct": 100 * overshoot_of(zeta) if loop == "position" else None},
+            "gains": gains, "model": predicted, "previous_gains": dict(previous_gains)}
+
+
+def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: float, zeta: float = 0.7,
+                     step: float, plant: dict | None = None, gravity_m_s2=(0.0, 0.0, -9.81),
+                     out_dir: str | Path | None = None, check_on_robot: bool = True) -> dict:
+    """Tune a loop that runs on a served robot (``session.hardware`` a
+    :class:`~jointctl.ros.served_hardware.ServedRobotHardware`: the served node's controller, its
+    gains through dynamic_reconfigure). The design is :func:`tune`'s; the check sets the new gains
+    on the served node, steps and sweeps it through the command topic, and puts the previous gains
+    back whatever happens; the YAML is the served node's controller parameters with the new gains."""
+    _check_spec(bandwidth_hz, step)
+    hardware = session.hardware
+    joints = [j for j, (_, name) in hardware.controllers.items() if name == controller_name]
+    if not joints:
+        raise ConfigError("not a loop of this hardware", field="--controller", value=controller_name)
+    joint = joints[0]
+    loop = hardware.controllers[joint][0]
+    hardware.read()
+    pose = {name: hardware.position[k] for k, name in enumerate(hardware.joint_names)}
+    spec = session.robot.joint(joint)
+    effort_limit = spec.limits.effort if spec.limits is not None and spec.limits.effort > 0 else math.inf
+    gravity = None if plant is not None else _gravity_load(session.robot, pose, joint, gravity_m_s2)
+    previous = hardware.gains(controller_name)
+    result = tune(controller_name, joint, loop, session.loop.period_s, plant, session.robot, pose, gravity,
+                  effort_limit, previous, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step)
     if check_on_robot:
-        result["robot"] = _check_on_robot(scenario_for, controller_name, gains, loop, step, bandwidth_hz)
+        hardware.set_gains(controller_name, result["gains"])
+        try:
+            result["robot"] = _check_servoed(session, joint, loop, step, bandwidth_hz)
+        finally:
+            hardware.set_gains(controller_name, previous)
+        result["gains_restored"] = hardware.gains(controller_name)
     if out_dir is not None:
-        _write(out_dir, scenario, controller_name, gains, result)
+        import rospy
+
+        namespace = hardware.namespace
+        _write(out_dir, f"{namespace}_tuned_params.yaml", {namespace: rospy.get_param(f"/{namespace}")},
+               controller_name, result)
     return result
 
 
-def _gravity_load(session: Session, joint: str) -> float:
-    """|gravity effort| on ``joint`` at the initial pose, from the robot model."""
+def _gravity_load(robot, pose: dict, joint: str, gravity_m_s2) -> float:
+    """|gravity effort| [N or N·m] on ``joint`` at ``pose`` (joint name -> position), from the robot model."""
     from jointctl.model.dynamics import RobotDynamics
 
-    robot = session.robot
-    dynamics = RobotDynamics(robot, gravity_m_s2=session.scenario.gravity_m_s2)
+    dynamics = RobotDynamics(robot, gravity_m_s2=gravity_m_s2)
     names = [j.name for j in robot.movable_joints]
-    hw = session.hardware
-    dynamics.set_pose([hw.position[hw.joint_index(n)] for n in names])
+    dynamics.set_pose([float(pose.get(n, 0.0)) for n in names])
     return float(abs(dynamics.gravity_at_pose()[names.index(joint)]))
 
 
@@ -191,62 +242,100 @@ def _overrides(controller_name: str, gains: dict) -> list[str]:
 
 def _check_on_robot(scenario_for, controller_name: str, gains: dict, loop: str, step: float,
                     bandwidth_hz: float) -> dict:
-    """The robot with the new gains: a step from rest, and a sweep around the bandwidth."""
+    """The simulated robot with the new gains: a step from rest, and a sweep around the bandwidth."""
     scenario = scenario_for(_overrides(controller_name, gains))
     session = Session(scenario)
     controller = session.manager.controller(controller_name)
+    figures = _step(session, controller.joint, controller.set_reference, loop, step)
+    frequencies = np.logspace(math.log10(bandwidth_hz / 2.5), math.log10(bandwidth_hz * 2.5), 15)
+    points, _ = measure(scenario, controller_name, frequencies, amplitude=step)
+    low, _ = measure(scenario, controller_name, [bandwidth_hz / 20], amplitude=step)
+    figures["bandwidth_hz"] = _crossing(frequencies, np.array([p.gain_db for p in points]) - low[0].gain_db,
+                                        -3.0103)
+    return figures
+
+
+def _check_servoed(session: Session, joint: str, loop: str, step: float, bandwidth_hz: float) -> dict:
+    """The served robot with the new gains: a step from rest and a shorter sweep (real time), the
+    sweep's gain taken relative to a fifth of the bandwidth."""
+    from jointctl.hardware.interface import POSITION, VELOCITY
+
     hardware = session.hardware
-    index = hardware.joint_index(controller.joint)
+    command = hardware.command_buffer(POSITION if loop == "position" else VELOCITY)
+    index = hardware.joint_index(joint)
+    frequencies = [bandwidth_hz / 5, *np.logspace(math.log10(bandwidth_hz / 2), math.log10(bandwidth_hz * 2), 7)]
+    points, _ = measure_servoed(session, joint, frequencies, amplitude=step, settle_s=0.5, measure_periods=3,
+                                measure_s=0.5)
+    gain = np.array([p.gain_db for p in points[1:]])
+    figures = _step(session, joint, lambda value: command.__setitem__(index, value), loop, step, hold_s=0.5,
+                    after_s=2.0)
+    figures["bandwidth_hz"] = _crossing(np.array(frequencies[1:]), gain - points[0].gain_db, -3.0103)
+    command[index] = figures["step_start"] if loop == "position" else 0.0  # back where it started
+    with session:
+        session.run(1.0)
+    return figures
+
+
+def _step(session: Session, joint: str, set_reference, loop: str, step: float, *, hold_s: float = 1.0,
+          after_s: float = 3.0) -> dict:
+    """A step of ``step`` from rest after ``hold_s``, watched for ``after_s``: overshoot [%] and the
+    damping ratio it implies (a position loop), start and final values."""
+    hardware = session.hardware
+    index = hardware.joint_index(joint)
     measured = hardware.position if loop == "position" else hardware.velocity
     samples: list[float] = []
-    start = {}
+    start: dict = {}
+    began = session.loop.time_s
 
     def drive(time_s: float) -> None:
-        if time_s >= 1.0:
+        if time_s - began >= hold_s:
             if "value" not in start:
                 start["value"] = measured[index]
                 start["reference"] = hardware.position[index] if loop == "position" else 0.0
-            controller.set_reference(start["reference"] + step)
+            set_reference(start["reference"] + step)
+
+    def record(time_s: float) -> None:
+        if time_s - began >= hold_s:
+            samples.append(measured[index])
 
     session.loop.add_input(drive)
-    session.loop.add_observer(lambda t: samples.append(measured[index]) if t >= 1.0 else None)
-    with session:
-        session.run(4.0)
+    session.loop.add_observer(record)
+    try:
+        with session:
+            session.run(hold_s + after_s)
+    finally:
+        session.loop.inputs.remove(drive)
+        session.loop.observers.remove(record)
     y = np.array(samples)
-    final = float(y[-200:].mean())
+    final = float(y[-200:].mean()) if y.size >= 400 else float(y[-max(1, y.size // 5):].mean())
     rise = final - start["value"]
     overshoot = 100 * (y.max() - final) / rise if rise > 0 else math.nan
-    frequencies = np.logspace(math.log10(bandwidth_hz / 2.5), math.log10(bandwidth_hz * 2.5), 15)
-    points, _ = measure(scenario, controller_name, frequencies, amplitude=step)
-    gain = np.array([p.gain_db for p in points])
-    low, _ = measure(scenario, controller_name, [bandwidth_hz / 20], amplitude=step)
-    bandwidth = _crossing(frequencies, gain - low[0].gain_db, -3.0103)
     return {"step_overshoot_pct": float(overshoot) if loop == "position" else None,
             "step_zeta": zeta_of(overshoot / 100) if loop == "position" else None,
-            "step_final": final, "step_start": start["value"], "bandwidth_hz": bandwidth}
+            "step_final": final, "step_start": start["value"]}
 
 
-def _write(out_dir, scenario: Scenario, controller_name: str, gains: dict, result: dict) -> None:
+def _write(out_dir, file_name: str, document: dict, controller_name: str, result: dict) -> None:
+    """The controller ``document`` (namespace -> controllers) with the tuned gains, as ``file_name``
+    in ``out_dir``, and ``metrics.json``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    source = Path(scenario.controller_file)
-    document = yaml.safe_load(source.read_text())
     tuned = copy.deepcopy(document)
     found = False
     for namespace in tuned.values():
         if isinstance(namespace, dict) and controller_name in namespace:
             pid = namespace[controller_name].setdefault("pid", {})
-            pid.update({k: round(v, 6) for k, v in gains.items()})
+            pid.update({k: round(v, 6) for k, v in result["gains"].items()})
             found = True
     if not found:
-        raise ConfigError("the controller is not in its file", source=str(source), field=controller_name)
-    header = (f"# {source.name} with {controller_name} tuned by jointctl autotune for "
+        raise ConfigError("the controller is not in its file", source=file_name, field=controller_name)
+    header = (f"# {file_name} with {controller_name} tuned by jointctl autotune for "
               f"{result['spec']['bandwidth_hz']:g} Hz" + (f", damping ratio {result['spec']['zeta']:g}"
                                                          if result["loop"] == "position" else "") + ".\n")
-    path = out / source.name
+    path = out / file_name
     path.write_text(header + yaml.safe_dump(tuned, sort_keys=False))
     result["yaml"] = str(path)
     (out / "metrics.json").write_text(json.dumps(result, indent=2, default=float))
 
 
-__all__ = ["autotune", "bandwidth_ratio", "design", "overshoot_of", "zeta_of"]
+__all__ = ["autotune", "autotune_servoed", "bandwidth_ratio", "design", "overshoot_of", "tune", "zeta_of"]

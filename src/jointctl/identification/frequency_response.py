@@ -39,6 +39,7 @@ import numpy as np
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
 from jointctl.errors import ConfigError
 from jointctl.identification.plant_fit import IdentificationError
+from jointctl.model.loader import load_robot_model
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
 from jointctl.tools.response_analysis import sinusoid_response
@@ -161,39 +162,30 @@ def loop_controller(manager, name: str):
     raise ConfigError("must be an effort position or velocity controller", field="--controller", value=name)
 
 
-def joint_limits(spec) -> tuple[float, float, float]:
-    """(lower, upper [m or rad], velocity [per s]) of a model joint; ±inf / inf where it has none."""
-    lim = spec.limits
-    lower = lim.lower if lim is not None and lim.lower is not None else -math.inf
-    upper = lim.upper if lim is not None and lim.upper is not None else math.inf
-    if spec.type == "continuous":
-        lower, upper = -math.inf, math.inf
-    vmax = lim.velocity if lim is not None and lim.velocity > 0 else math.inf
-    return float(lower), float(upper), float(vmax)
-
-
 def measure_servoed(session: Session, joint: str, frequencies_hz, *, amplitude: float | None = None,
                     settle_s: float = 1.5, measure_periods: int = 4, measure_s: float = 1.0) -> tuple[list[Point], dict]:
     """The same measurement on hardware that servos its joints itself (an industrial controller behind
-    :class:`~jointctl.hardware.industrial.IndustrialHardware`): the sine goes straight to the joint's
-    position command interface, the response is the position the hardware reports. ``session`` must
-    start no controller that commands the joint; it runs as it is paced (the wall clock, for real
-    hardware)."""
-    from jointctl.hardware.interface import POSITION
+    :class:`~jointctl.hardware.industrial.IndustrialHardware`, a robot served on the ROS graph): the
+    sine goes straight to the joint's position (or velocity) command interface, the response is the
+    position (or velocity) the hardware reports. ``session`` must start no controller that commands
+    the joint; it runs as it is paced (the wall clock, for real hardware)."""
+    from jointctl.hardware.interface import POSITION, VELOCITY
 
     hardware = session.hardware
     index = hardware.joint_index(joint, field="--joint")
-    if POSITION not in hardware.command_interfaces(joint):
-        raise ConfigError("the hardware has no position command interface for it", field="--joint", value=joint)
+    interfaces = hardware.command_interfaces(joint)
+    loop = "position" if POSITION in interfaces else "velocity" if VELOCITY in interfaces else None
+    if loop is None:
+        raise ConfigError("the hardware has no position or velocity loop for it", field="--joint", value=joint)
     owner = session.manager.commanding(joint)
     if owner is not None:
         raise ConfigError(f"controller {owner.name!r} commands it; start none that does", field="--joint", value=joint)
-    command = hardware.command_buffer(POSITION)
+    command = hardware.command_buffer(POSITION if loop == "position" else VELOCITY)
 
-    def set_reference(q: float) -> None:
-        command[index] = q
+    def set_reference(value: float) -> None:
+        command[index] = value
 
-    return sweep(session, joint, frequencies_hz, set_reference, loop="position", amplitude=amplitude,
+    return sweep(session, joint, frequencies_hz, set_reference, loop=loop, amplitude=amplitude,
                  settle_s=settle_s, measure_periods=measure_periods, measure_s=measure_s)
 
 
@@ -211,7 +203,7 @@ def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: 
     index = hardware.joint_index(joint)
     hardware.read()
     rest = hardware.position[index]
-    lower, upper, _ = joint_limits(robot.joint(joint))
+    lower, upper, _ = robot.joint(joint).range_and_speed()
     room = min(rest - lower, upper - rest)
     room = 1.0 if math.isinf(room) else room
     safe = room / 3 if loop == "position" else room / 3 * 2 * math.pi * min(frequencies)
@@ -261,8 +253,12 @@ def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: 
     started = session.loop.time_s
     session.loop.add_input(drive)
     session.loop.add_observer(record)
-    with session:
-        session.run(t0 + 0.1 - started)
+    try:
+        with session:
+            session.run(t0 + 0.1 - started)
+    finally:
+        session.loop.inputs.remove(drive)
+        session.loop.observers.remove(record)
     # Reference and response at the same loop time: the response measured at the start of a cycle,
     # the reference that cycle's (held over the period that follows).
     t, r, y = np.array(times), np.array(references), np.array(responses)
@@ -285,16 +281,22 @@ def bode(scenario: Scenario, controller_name: str, frequencies_hz, *, plant: dic
     armature included, and its URDF damping). Writes ``bode.png`` and ``metrics.json`` to
     ``out_dir`` when given; returns the metrics."""
     points, context = measure(scenario, controller_name, frequencies_hz, amplitude=amplitude)
+    robot = load_robot_model(scenario.robot.description)
+    pose = {**scenario.initial_positions, context["joint"]: context["rest"]}
+    return compare(points, context, controller_name, plant, robot, pose, out_dir=out_dir)
+
+
+def compare(points: list[Point], context: dict, controller_name: str, plant: dict | None, robot, pose: dict,
+            *, out_dir: str | Path | None = None) -> dict:
+    """Set measured ``points`` (with their sweep ``context`` and the ``gains`` in it) beside the loop
+    model: the plant from ``plant`` (an identification's metrics) or else from ``robot`` (the
+    joint's mass-matrix entry at ``pose``, joint name -> position, and its URDF damping); write
+    ``bode.png`` and ``metrics.json`` to ``out_dir`` when given; the metrics."""
     if plant is not None:
-        mass = plant.get("mass_kg", plant.get("inertia_kg_m2"))
-        damping = plant.get("damping_n_s_m", plant.get("damping_n_m_s_rad"))
-        if not (isinstance(mass, (int, float)) and mass > 0 and isinstance(damping, (int, float))):
-            raise IdentificationError("the plant needs mass_kg or inertia_kg_m2 (positive) and damping_n_s_m or "
-                                      "damping_n_m_s_rad, as jointctl identify writes them", field="plant",
-                                      value=plant)
+        mass, damping = plant_of(plant)
         source = "identified"
     else:
-        mass, damping = _model_plant(scenario, context["joint"], context["rest"])
+        mass, damping = model_plant(robot, context["joint"], pose)
         source = "robot model"
     gains = context["gains"]
     model = LoopModel(float(mass), float(damping), gains["p"], gains["i"], gains["d"], context["period_s"],
@@ -306,19 +308,27 @@ def bode(scenario: Scenario, controller_name: str, frequencies_hz, *, plant: dic
     return result
 
 
-def _model_plant(scenario: Scenario, joint: str, rest: float) -> tuple[float, float]:
-    """The joint's inertia (mass-matrix diagonal at the scenario's initial pose, the joint at ``rest``)
-    and URDF damping."""
-    from jointctl.model.dynamics import RobotDynamics
-    from jointctl.model.loader import load_robot_model
+def plant_of(plant: dict) -> tuple[float, float]:
+    """(inertia, damping) of an identification's metrics (``mass_kg`` or ``inertia_kg_m2``, and
+    ``damping_n_s_m`` or ``damping_n_m_s_rad``); IdentificationError naming what is missing."""
+    mass = plant.get("mass_kg", plant.get("inertia_kg_m2"))
+    damping = plant.get("damping_n_s_m", plant.get("damping_n_m_s_rad"))
+    if not (isinstance(mass, (int, float)) and mass > 0 and isinstance(damping, (int, float))):
+        raise IdentificationError("the plant needs mass_kg or inertia_kg_m2 (positive) and damping_n_s_m or "
+                                  "damping_n_m_s_rad, as jointctl identify writes them", field="plant",
+                                  value=plant)
+    return float(mass), float(damping)
 
-    robot = load_robot_model(scenario.robot.description)
+
+def model_plant(robot, joint: str, pose: dict) -> tuple[float, float]:
+    """The joint's inertia (its mass-matrix diagonal entry at ``pose``, joint name -> position, other
+    joints at 0; armature included) and URDF damping."""
+    from jointctl.model.dynamics import RobotDynamics
+
     dynamics = RobotDynamics(robot)
     names = [j.name for j in robot.movable_joints]
-    pose = [scenario.initial_positions.get(name, 0.0) for name in names]
+    dynamics.set_pose([float(pose.get(name, 0.0)) for name in names])
     k = names.index(joint)
-    pose[k] = rest
-    dynamics.set_pose(pose)
     return float(dynamics.mass_matrix()[k, k]), float(robot.joint(joint).damping)
 
 
@@ -386,5 +396,5 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
     return path
 
 
-__all__ = ["LoopModel", "Point", "analyse", "bode", "joint_limits", "loop_controller", "measure", "measure_servoed",
+__all__ = ["LoopModel", "Point", "analyse", "bode", "compare", "loop_controller", "measure", "measure_servoed", "model_plant", "plant_of",
            "sweep", "write_bode"]

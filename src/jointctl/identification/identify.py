@@ -26,8 +26,9 @@ import numpy as np
 from jointctl.control.joint_controllers import JointPositionController
 from jointctl.errors import ConfigError
 from jointctl.identification.excitation import Chirp, safe_chirp
-from jointctl.identification.frequency_response import joint_limits
-from jointctl.identification.plant_fit import IdentificationError, PlantFit, fit_plant
+from jointctl.hardware.interface import POSITION
+from jointctl.identification.plant_fit import (IdentificationError, PlantFit, accelerations, fit_plant,
+                                               resample_uniform)
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
 from jointctl.tools.figures import plot_series
@@ -46,52 +47,129 @@ def identify_on_robot(scenario: Scenario, joint: str, *, out_dir: str | Path | N
                       f_end_hz: float = 3.0, fit_friction: bool = True) -> tuple[PlantFit, dict]:
     """Excite ``joint`` of the scenario's robot and fit it; (fit, metrics). See the module docstring."""
     session = Session(scenario, out_dir=out_dir)
-    robot, hardware, manager = session.robot, session.hardware, session.manager
-    if not robot.has_joint(joint) or not robot.joint(joint).is_movable:
-        movable = ", ".join(j.name for j in robot.movable_joints)
-        raise ConfigError(f"no movable joint of that name (movable: {movable})", field="--joint", value=joint)
-    controller = manager.commanding(joint)
+    _movable(session.robot, joint)
+    controller = session.manager.commanding(joint)
     if not isinstance(controller, JointPositionController):
         raise ConfigError("the joint needs a started effort_controllers/JointPositionController to follow the "
                           "excitation (use a position controller file)", field="--joint", value=joint)
-    spec = robot.joint(joint)
+    hardware = session.hardware
+    index = hardware.joint_index(joint)
+    samples: list[tuple[float, float, float, float]] = []
+    session.loop.add_observer(lambda time_s: samples.append(
+        (time_s, hardware.position[index], hardware.velocity[index], hardware.effort[index])))
+    excitation = _excite(session, joint, controller.set_reference, amplitude=amplitude, duration_s=duration_s,
+                    f_start_hz=f_start_hz, f_end_hz=f_end_hz)
+    t, q, qd, u = (np.array(column) for column in zip(*samples))
+    fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction)
+    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u)
+
+
+def identify_servoed(session: Session, joint: str, *, out_dir: str | Path | None = None,
+                     amplitude: float | None = None, duration_s: float = 10.0, f_start_hz: float = 0.2,
+                     f_end_hz: float = 3.0, fit_friction: bool = True) -> tuple[PlantFit, dict]:
+    """The same on hardware that servos the joint itself and records every state it receives (a
+    robot served on the ROS graph, :class:`~jointctl.ros.served_hardware.ServedRobotHardware`):
+    the chirp goes to the joint's position command interface (the served position loop's
+    reference), the fit takes the states as they arrived, put on a uniform grid; forward
+    differences when they came every control period, central ones when sparser. ``session`` runs
+    paced as it is (the wall clock) and starts no controller that commands the joint."""
+    hardware = session.hardware
+    _movable(session.robot, joint)
+    index = hardware.joint_index(joint, field="--joint")
+    if POSITION not in hardware.command_interfaces(joint):
+        raise ConfigError("the hardware has no position loop for it (identification follows a position "
+                          "reference)", field="--joint", value=joint)
+    command = hardware.command_buffer(POSITION)
+
+    def set_reference(q: float) -> None:
+        command[index] = q
+
+    hardware.start_recording()
+    excitation = _excite(session, joint, set_reference, amplitude=amplitude, duration_s=duration_s,
+                    f_start_hz=f_start_hz, f_end_hz=f_end_hz)
+    stamps, q, qd, u = hardware.recorded(joint)
+    if len(stamps) < 50:
+        raise IdentificationError("too few joint states arrived during the excitation (at least 50)",
+                                  field="samples", value=len(stamps))
+    t, q, qd, u = resample_uniform(np.array(stamps) - stamps[0], q, qd, u)
+    fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction,
+                    acceleration=differences_for(t, session.loop.period_s))
+    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u)
+
+
+def differences_for(t: np.ndarray, loop_period_s: float) -> str:
+    """"forward" for samples of every control period of a loop of ``loop_period_s``, else "central"."""
+    return "forward" if t[1] - t[0] < 1.5 * loop_period_s else "central"
+
+
+def identify_states(stamps, q, qd, u, joint: str, joint_type: str, *, source: str, loop_period_s: float = 0.001,
+                    out_dir: str | Path | None = None, fit_friction: bool = True) -> tuple[PlantFit, dict]:
+    """Fit ``joint`` from joint states as they were received (``stamps`` [s], not necessarily
+    uniform: a bag, a subscriber), put on a uniform grid (:func:`resample_uniform`); differences as
+    :func:`differences_for` picks for a loop of ``loop_period_s``. ``source`` names where they came from."""
+    if len(stamps) < 50:
+        raise IdentificationError("too few joint states to fit (at least 50)", field="samples", value=len(stamps))
+    t, q, qd, u = resample_uniform(np.asarray(stamps, dtype=float) - stamps[0], q, qd, u)
+    fit = fit_plant(t, q, qd, u, joint_type=joint_type, fit_friction=fit_friction,
+                    acceleration=differences_for(t, loop_period_s))
+    metrics = _metrics(fit, joint)
+    metrics.update(trace=source, sample_period_s=float(t[1] - t[0]))
+    if out_dir is not None:
+        _write(out_dir, joint, fit, metrics, t, q, qd, u)
+    return fit, metrics
+
+
+def _movable(robot, joint: str) -> None:
+    if not robot.has_joint(joint) or not robot.joint(joint).is_movable:
+        movable = ", ".join(j.name for j in robot.movable_joints)
+        raise ConfigError(f"no movable joint of that name (movable: {movable})", field="--joint", value=joint)
+
+
+def _excite(session: Session, joint: str, set_reference, *, amplitude, duration_s, f_start_hz,
+            f_end_hz) -> tuple[Chirp, float, float]:
+    """Run the safe chirp through ``set_reference`` (settle, excite, settle) with the limit guard;
+    (the chirp, the joint's lower and upper limits), or IdentificationError when the guard tripped
+    (the reference back at the start)."""
+    hardware = session.hardware
     index = hardware.joint_index(joint)
     hardware.read()
-    lower, upper, vmax = joint_limits(spec)
+    lower, upper, vmax = session.robot.joint(joint).range_and_speed()
     chirp = safe_chirp(hardware.position[index], lower, upper, vmax, amplitude=amplitude, duration_s=duration_s,
                        f_start_hz=f_start_hz, f_end_hz=f_end_hz)
     band = GUARD_FRACTION * (upper - lower) if math.isfinite(upper - lower) else math.inf
-    samples: list[tuple[float, float, float, float]] = []
     tripped: list[float] = []
+    started = session.loop.time_s
 
     def excite(time_s: float) -> None:
         q = hardware.position[index]
         if not tripped and (q < lower + band or q > upper - band):
             tripped.append(q)
-        controller.set_reference(chirp.start if tripped else chirp(time_s - SETTLE_S))
-
-    def record(time_s: float) -> None:
-        samples.append((time_s, hardware.position[index], hardware.velocity[index], hardware.effort[index]))
+        set_reference(chirp.start if tripped else chirp(time_s - started - SETTLE_S))
 
     session.loop.add_input(excite)
-    session.loop.add_observer(record)
-    with session:
-        session.run(SETTLE_S + duration_s + SETTLE_AFTER_S)
+    try:
+        with session:
+            session.run(SETTLE_S + duration_s + SETTLE_AFTER_S)
+    finally:
+        session.loop.inputs.remove(excite)
     if tripped:
         raise IdentificationError(f"the joint came within {band:.3g} of a limit of [{lower:g}, {upper:g}]: the "
                                   "excitation was stopped and the joint returned; give a smaller --amplitude",
                                   field="position", value=tripped[0])
-    t, q, qd, u = (np.array(column) for column in zip(*samples))
-    fit = fit_plant(t, q, qd, u, joint_type=spec.type, fit_friction=fit_friction)
+    return chirp, lower, upper
+
+
+def _finish(fit: PlantFit, joint: str, excitation: tuple[Chirp, float, float], out_dir, t, q, qd, u) -> dict:
+    chirp, lower, upper = excitation
     metrics = _metrics(fit, joint)
     metrics["excitation"] = {"amplitude": chirp.amplitude, "f_start_hz": chirp.f_start_hz,
                              "f_end_hz": chirp.f_end_hz, "duration_s": chirp.duration_s, "start": chirp.start,
                              "position_min": float(q.min()), "position_max": float(q.max()),
-                             "rest_before": float(q[t <= SETTLE_S][-1]), "rest_after": float(q[-1]),
+                             "rest_before": float(q[t - t[0] <= SETTLE_S][-1]), "rest_after": float(q[-1]),
                              "lower": lower, "upper": upper}
     if out_dir is not None:
         _write(out_dir, joint, fit, metrics, t, q, qd, u)
-    return fit, metrics
+    return metrics
 
 
 def identify_trace(path: str | Path, joint: str, joint_type: str, *, out_dir: str | Path | None = None,
@@ -141,11 +219,10 @@ def _write(out_dir, joint, fit: PlantFit, metrics: dict, t, q, qd, u) -> None:
     out.mkdir(parents=True, exist_ok=True)
     dt = float(np.median(np.diff(t)))
     shift = fit.effort_shift_cycles
-    n = len(t) - 1 - shift
-    qdd = (qd[1:n + 1] - qd[:n]) / dt
-    predicted = fit.effort(q[:n], qd[:n], qdd)
+    at, qdd = accelerations(qd, dt, shift, fit.acceleration)
+    predicted = fit.effort(q[at], qd[at], qdd)
     effort_unit = "N" if fit.joint_type == "prismatic" else "N·m"
-    plot_series(out / f"identify_{joint}.png", t[:n], {"measured effort": u[shift:shift + n],
+    plot_series(out / f"identify_{joint}.png", t[at], {"measured effort": u[at.start + shift:at.stop + shift],
                                                        "identified model": predicted},
                 title=f"{joint}: measured effort against the identified model (R² {fit.r_squared:.5f})",
                 ylabel=f"effort [{effort_unit}]")
@@ -155,4 +232,4 @@ def _write(out_dir, joint, fit: PlantFit, metrics: dict, t, q, qd, u) -> None:
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
 
 
-__all__ = ["Chirp", "identify_on_robot", "identify_trace"]
+__all__ = ["Chirp", "identify_on_robot", "identify_servoed", "identify_states", "identify_trace"]

@@ -133,13 +133,8 @@ class JointLimits:
             if not joint.is_movable:
                 raise JointCtlError(f"is a {joint.type} joint that does not move", field=f"joint_names[{i}]",
                                     value=name)
-            lim = joint.limits
-            lower = lim.lower if lim is not None and lim.lower is not None else -math.inf
-            upper = lim.upper if lim is not None and lim.upper is not None else math.inf
-            if joint.type == "continuous":
-                lower, upper = -math.inf, math.inf
-            velocity = lim.velocity if lim is not None and lim.velocity > 0 else math.inf
-            out.append(cls(float(lower), float(upper), float(velocity), velocity / stop_time_s))
+            lower, upper, velocity = joint.range_and_speed()
+            out.append(cls(lower, upper, velocity, velocity / stop_time_s))
         return tuple(out)
 
 

@@ -9,6 +9,8 @@ the parent link's frame.
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 Vector3 = tuple[float, float, float]
@@ -126,6 +128,18 @@ class Joint:
     @property
     def is_prismatic(self) -> bool:
         return self.type == "prismatic"
+
+    def range_and_speed(self) -> tuple[float, float, float]:
+        """(lower, upper [m or rad], speed limit [m/s or rad/s]) from the URDF's ``<limit>``: a
+        continuous joint has no range (±inf), a joint without a ``<limit>`` or with velocity 0 an
+        unknown speed limit (inf)."""
+        lim = self.limits
+        lower = lim.lower if lim is not None and lim.lower is not None else -math.inf
+        upper = lim.upper if lim is not None and lim.upper is not None else math.inf
+        if self.type == "continuous":
+            lower, upper = -math.inf, math.inf
+        speed = lim.velocity if lim is not None and lim.velocity > 0 else math.inf
+        return float(lower), float(upper), float(speed)
 
 
 @dataclass(frozen=True)
