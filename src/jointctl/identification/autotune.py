@@ -203,10 +203,8 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
             hardware.set_gains(controller_name, previous)
         result["gains_restored"] = hardware.gains(controller_name)
     if out_dir is not None:
-        import rospy
-
         namespace = hardware.namespace
-        _write(out_dir, f"{namespace}_tuned_params.yaml", {namespace: rospy.get_param(f"/{namespace}")},
+        _write(out_dir, f"{namespace}_tuned_params.yaml", {namespace: hardware.controller_parameters()},
                controller_name, result)
     return result
 

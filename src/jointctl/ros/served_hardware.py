@@ -178,6 +178,11 @@ class ServedRobotHardware(HardwareInterface):
                                 field=f"/{self.namespace}/{controller}/pid", value=gains)
         return answered
 
+    def controller_parameters(self) -> dict:
+        """The served node's controller parameters (``/<namespace>`` on the parameter server: its
+        controller YAML as loaded, with the gains as they are now)."""
+        return rospy.get_param(f"/{self.namespace}")
+
     def _reconfigure(self, controller: str):
         from dynamic_reconfigure.client import Client
 
