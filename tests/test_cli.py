@@ -188,6 +188,9 @@ def test_identify_writes_metrics_and_reads_its_own_trace_back(tmp_path):
     (["one_dof", "--joint", "joint7"], ["--joint", "joint7"]),
     (["one_dof", "--joint", "joint1", "--controllers", "velocity"], ["JointPositionController"]),
     (["trace.csv", "--joint", "joint1"], ["--joint-type"]),
+    (["run.bag", "--joint", "joint1"], ["--joint-type"]),
+    (["one_dof", "--joint", "joint1", "--hardware", "industrial"], ["--hardware", "no joint efforts", "bode"]),
+    (["my_robot.urdf", "--joint", "joint1", "--hardware", "ros"], ["needs a built-in robot", "my_robot.urdf"]),
 ])
 def test_identify_refuses_bad_input_in_one_line(args, fragments, tmp_path):
     assert_one_line_error(jointctl("identify", *args, "--out", tmp_path / "o"), *fragments)
@@ -231,6 +234,7 @@ def test_identify_then_autotune_with_the_identified_plant_writes_the_chapters_ya
     (["--bandwidth-hz", "20", "--step", "0.5"], ["bandwidth_hz", "the most this step allows is"]),
     (["--bandwidth-hz", "5", "--zeta", "1.5"], ["zeta", "1.5"]),
     (["--bandwidth-hz", "5", "--plant", "nowhere.json"], ["--plant", "nowhere.json"]),
+    (["--bandwidth-hz", "5", "--hardware", "industrial"], ["--hardware", "gains of its own"]),
 ])
 def test_autotune_refuses_bad_input_in_one_line(args, fragments, tmp_path):
     assert_one_line_error(jointctl("autotune", "one_dof", "--controller", "joint1_position_controller", *args,
