@@ -31,6 +31,16 @@ def test_the_copy_has_the_live_gains_and_gravity(tuner) -> None:
     assert result["gravity_load_n"] == pytest.approx(1.01 * 5.0, rel=0.01)  # the copy's gravity is the live one
 
 
+def test_the_copy_starts_where_the_live_robot_is(tuner) -> None:
+    tuner.commandable[CONTROLLER].set_reference(-0.3)
+    tuner.loop.run(2.0)
+    here = tuner.hardware.position[0]
+    assert here == pytest.approx(-0.3 - 1.01 * 9.81 / 400, abs=2e-3)  # at rest there, the P loop's droop below
+    assert live_copy(tuner).initial_positions["joint1"] == here
+    result = run_analysis(tuner, parse_request(f'{{"type": "identify", "controller": "{CONTROLLER}"}}'))["result"]
+    assert result["excitation"]["start"] == pytest.approx(here, abs=1e-4)
+
+
 def test_an_analysis_changes_nothing_live(tuner) -> None:
     time_before = tuner.loop.time_s
     reply = run_analysis(tuner, parse_request(f'{{"type": "autotune", "controller": "{CONTROLLER}", '

@@ -1,7 +1,7 @@
 """The tuning page's Identify, Bode and Auto-tune panels: jointctl's identification tools on the page's robot.
 
 Each runs on a simulated copy of the page's robot: its scenario with the gains and gravity live on
-the page now, in simulated time (a second or two of wall-clock time), so the live loop is never
+the page now, starting from the pose the robot holds now, in simulated time (a second or two of wall-clock time), so the live loop is never
 disturbed and nothing changes until the page applies gains through its usual gain requests (the
 Auto-tune panel's Apply, and Revert to the gains the analysis started from). Replies::
 
@@ -30,8 +30,8 @@ BODE_POINTS = 16
 
 
 def live_copy(tuner, overrides=()) -> Scenario:
-    """The page's scenario with its live PID gains and gravity, plus ``overrides``
-    (``controllers.NAME.pid.p=VALUE`` strings)."""
+    """The page's scenario with its live PID gains, gravity and pose (the joints' measured
+    positions as initial positions), plus ``overrides`` (``controllers.NAME.pid.p=VALUE`` strings)."""
     scenario = tuner.scenario
     merged = dict(scenario.controller_overrides)
     for name, group in tuner.groups.items():
@@ -43,7 +43,10 @@ def live_copy(tuner, overrides=()) -> Scenario:
         key, value = parse_override(item)
         merged[key.removeprefix("controllers.")] = value
     gravity = tuner._gravity_z()
-    changes: dict[str, Any] = {"controller_overrides": merged, "commands": {}, "objects": ()}
+    hardware = tuner.hardware
+    pose = {**scenario.initial_positions, **dict(zip(hardware.joint_names, hardware.position))}
+    changes: dict[str, Any] = {"controller_overrides": merged, "commands": {}, "objects": (),
+                               "initial_positions": pose}
     if gravity is not None:
         changes["gravity_m_s2"] = (0.0, 0.0, gravity)
     return dataclasses.replace(scenario, **changes)
