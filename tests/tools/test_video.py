@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import shutil
 
 import mujoco
@@ -14,7 +15,7 @@ from jointctl.scenario.run import run_scenario
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import load_scenario
 from jointctl.sim.rendering import CameraView, OffscreenRenderer
-from jointctl.tools.video import FrameCapture, VideoSettings, render_frames, robot_camera
+from jointctl.tools.video import FrameCapture, VideoSettings, gif_timing, render_frames, robot_camera
 
 # At 1 m height, 4 m away on -y, looking level: the piston's top (1.5 to 1.8 m) is above eye level, against the
 # black background, and its silhouette's top is the near rim of its top face.
@@ -91,6 +92,31 @@ def test_run_video_writes_an_mp4_and_a_small_gif(tmp_path) -> None:
     assert gif.n_frames == 20 and gif.size == (320, 240)
     assert (tmp_path / "video.mp4").read_bytes()[4:8] == b"ftyp"  # an MP4 container
     assert json.loads((tmp_path / "metrics.json").read_text())["video"]["gif"].endswith("video.gif")
+
+
+@pytest.mark.parametrize("fps", [10, 15, 24, 30, 60, 120])
+def test_a_gif_plays_at_the_runs_speed(fps) -> None:
+    frames = 3 * fps  # three seconds of run
+    every, durations_ms = gif_timing(frames, fps)
+    assert len(durations_ms) == math.ceil(frames / every) and min(durations_ms) >= 20  # browsers slow < 2 cs
+    assert all(d % 10 == 0 for d in durations_ms)  # whole hundredths: what a GIF stores
+    starts = np.cumsum([0, *durations_ms])
+    assert np.abs(starts - np.arange(len(starts)) * every * 1000 / fps).max() <= 5.0
+    assert starts[-1] == pytest.approx(3000, abs=5)
+
+
+def test_a_written_gif_holds_those_delays(tmp_path) -> None:
+    from PIL import Image
+
+    from jointctl.tools.video import _write_gif
+
+    pictures = [np.full((24, 32, 3), 10 * k, dtype=np.uint8) for k in range(15)]  # one second at 15 fps
+    gif = Image.open(_write_gif(pictures, tmp_path / "v.gif", 15.0))
+    delays = []
+    for k in range(gif.n_frames):
+        gif.seek(k)
+        delays.append(gif.info["duration"])
+    assert gif.n_frames == 15 and sum(delays) == 1000 and set(delays) == {60, 70}
 
 
 def test_the_robots_camera_comes_from_its_manifest() -> None:
