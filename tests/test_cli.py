@@ -235,6 +235,10 @@ def test_identify_then_autotune_with_the_identified_plant_writes_the_chapters_ya
     (["--bandwidth-hz", "5", "--zeta", "1.5"], ["zeta", "1.5"]),
     (["--bandwidth-hz", "5", "--plant", "nowhere.json"], ["--plant", "nowhere.json"]),
     (["--bandwidth-hz", "5", "--hardware", "industrial"], ["--hardware", "gains of its own"]),
+    ([], ["--bandwidth-hz", "--overshoot-pct and --settling-s"]),
+    (["--overshoot-pct", "10"], ["--settling-s", "is required with --overshoot-pct"]),
+    (["--bandwidth-hz", "5", "--overshoot-pct", "10", "--settling-s", "0.3"], ["--bandwidth-hz", "either"]),
+    (["--overshoot-pct", "120", "--settling-s", "0.3"], ["overshoot_pct", "120"]),
 ])
 def test_autotune_refuses_bad_input_in_one_line(args, fragments, tmp_path):
     assert_one_line_error(jointctl("autotune", "one_dof", "--controller", "joint1_position_controller", *args,

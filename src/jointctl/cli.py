@@ -11,9 +11,10 @@
     jointctl traj-client [--seed N] [--server S]    the chapter's example trajectory action client
     jointctl tune ROBOT --controllers NAME [--port P]  the tuning page: live plots, gains, sources
     jointctl controller ROBOT [--motion-port P]     a simulated industrial controller (simple_message)
-    jointctl identify ROBOT|TRACE --joint J [--out DIR]  fit a joint's inertia, damping, friction, gravity
+    jointctl identify ROBOT|TRACE|BAG --joint J [--hardware ros]  fit a joint's inertia, damping, friction, gravity
     jointctl bode ROBOT --controller NAME [--out DIR]     a loop's measured frequency response and its model
     jointctl autotune ROBOT --controller NAME --zeta Z --bandwidth-hz F   gains for a spec, as the chapter's YAML
+                     (or --overshoot-pct P --settling-s T)
 
 Every error a user can cause is printed as one line naming the file, field
 and value, with exit status 2.
@@ -166,8 +167,11 @@ def _parser() -> argparse.ArgumentParser:
                                                                 "position, or velocity for a velocity controller)")
     tune_gains.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                             help="override a scenario field (repeatable)")
-    tune_gains.add_argument("--bandwidth-hz", type=float, required=True, help="closed-loop -3 dB bandwidth [Hz]")
-    tune_gains.add_argument("--zeta", type=float, default=0.7, help="damping ratio of a position loop (default 0.7)")
+    tune_gains.add_argument("--bandwidth-hz", type=float, help="closed-loop -3 dB bandwidth [Hz]")
+    tune_gains.add_argument("--zeta", type=float, help="damping ratio of a position loop (default 0.7)")
+    tune_gains.add_argument("--overshoot-pct", type=float,
+                            help="or: a position loop's step overshoot [%%], with --settling-s")
+    tune_gains.add_argument("--settling-s", type=float, help="and the time its step takes to stay within 2 %% [s]")
     tune_gains.add_argument("--step", type=float, default=0.1,
                             help="the largest step [m, rad, or per s] that must not saturate the effort (default 0.1)")
     tune_gains.add_argument("--plant", type=Path, help="an identification's metrics.json (default: the robot model)")
@@ -498,6 +502,27 @@ def _loop_scenario(args: argparse.Namespace, overrides=()):
     return load_scenario(args.target, [*args.overrides, *overrides])
 
 
+def _autotune_spec(args: argparse.Namespace) -> tuple[float, float, float | None]:
+    """(ζ, bandwidth [Hz], settling time [s] or None) from either form of the spec."""
+    from jointctl.identification.autotune import spec_from_step
+
+    by_step = args.overshoot_pct is not None or args.settling_s is not None
+    if by_step:
+        for flag, given in (("--bandwidth-hz", args.bandwidth_hz), ("--zeta", args.zeta)):
+            if given is not None:
+                raise JointCtlError("give either --bandwidth-hz (and --zeta) or --overshoot-pct and --settling-s",
+                                    field=flag, value=given)
+        for flag, given in (("--overshoot-pct", args.overshoot_pct), ("--settling-s", args.settling_s)):
+            if given is None:
+                raise JointCtlError("is required with " + ("--settling-s" if flag == "--overshoot-pct" else
+                                                           "--overshoot-pct"), field=flag)
+        zeta, bandwidth_hz = spec_from_step(args.overshoot_pct, args.settling_s)
+        return zeta, bandwidth_hz, args.settling_s
+    if args.bandwidth_hz is None:
+        raise JointCtlError("is required (or --overshoot-pct and --settling-s)", field="--bandwidth-hz")
+    return (0.7 if args.zeta is None else args.zeta), args.bandwidth_hz, None
+
+
 def _autotune(args: argparse.Namespace) -> int:
     from jointctl.identification.autotune import autotune
 
@@ -505,16 +530,17 @@ def _autotune(args: argparse.Namespace) -> int:
         raise JointCtlError("an industrial controller servos its joints with gains of its own, which simple_message "
                             "cannot read or set: there is nothing of jointctl's to tune", field="--hardware",
                             value="industrial")
+    zeta, bandwidth_hz, settling_s = _autotune_spec(args)
     if args.hardware == "ros":
         from jointctl.identification.autotune import autotune_servoed
 
         with _served(args, controller=args.controller) as (session, name):
-            result = autotune_servoed(session, name, bandwidth_hz=args.bandwidth_hz, zeta=args.zeta, step=args.step,
-                                      plant=_plant_file(args.plant), out_dir=args.out)
+            result = autotune_servoed(session, name, bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step,
+                                      plant=_plant_file(args.plant), out_dir=args.out, settling_s=settling_s)
     else:
         result = autotune(lambda overrides: _loop_scenario(args, overrides), args.controller,
-                          bandwidth_hz=args.bandwidth_hz, zeta=args.zeta, step=args.step,
-                          plant=_plant_file(args.plant), out_dir=args.out)
+                          bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step, plant=_plant_file(args.plant),
+                          out_dir=args.out, settling_s=settling_s)
     print(json.dumps(result, indent=2, default=float))
     print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0

@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 import yaml
 
-from jointctl.identification.autotune import autotune, bandwidth_ratio, design, overshoot_of, zeta_of
+from jointctl.identification.autotune import (autotune, bandwidth_ratio, design, overshoot_of, settling_time,
+                                              spec_from_step, zeta_of)
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.scenario.spec import scenario_for_robot
 
@@ -45,6 +47,37 @@ def test_the_one_dof_robot_meets_zeta_07_and_5_hz(tmp_path) -> None:
     tuned = type(scenario)(**{**scenario.__dict__, "controller_file": tmp_path / "one_dof_pos_ctl_params.yaml"})
     with Session(tuned) as session:
         assert session.manager.controller("joint1_position_controller").pid.gains.p == pytest.approx(pid["p"])
+
+
+@pytest.mark.parametrize("overshoot_pct, settling_s", [(4.6, 0.2), (10.0, 0.3), (25.0, 1.0)])
+def test_an_overshoot_and_settling_time_become_the_second_order_loop_that_has_them(overshoot_pct,
+                                                                                   settling_s) -> None:
+    from scipy import signal
+
+    zeta, bandwidth_hz = spec_from_step(overshoot_pct, settling_s)
+    wn = 2 * math.pi * bandwidth_hz / bandwidth_ratio(zeta)
+    t, y = signal.step(signal.lti([wn**2], [1, 2 * zeta * wn, wn**2]), T=np.linspace(0, 5 * settling_s, 200_001))
+    assert 100 * (y.max() - 1) == pytest.approx(overshoot_pct, rel=1e-3)
+    assert settling_time(t, y, 0.0, 1.0) == pytest.approx(settling_s, rel=1e-3)
+
+
+def test_the_one_dof_robot_meets_10_percent_in_03_s() -> None:
+    zeta, bandwidth_hz = spec_from_step(10.0, 0.3)
+    result = autotune(one_dof, "joint1_position_controller", bandwidth_hz=bandwidth_hz, zeta=zeta, step=0.1,
+                      settling_s=0.3)
+    assert result["spec"]["settling_s"] == 0.3 and result["spec"]["overshoot_pct"] == pytest.approx(10.0)
+    assert result["robot"]["step_overshoot_pct"] == pytest.approx(10.0, abs=1.0)
+    assert result["robot"]["step_settling_s"] == pytest.approx(0.3, rel=0.1)
+    assert result["model"]["settling_s"] == pytest.approx(0.3, rel=0.05)
+
+
+def test_a_bad_step_spec_is_refused_naming_the_field() -> None:
+    with pytest.raises(IdentificationError) as info:
+        spec_from_step(150.0, 0.3)
+    assert info.value.field == "overshoot_pct"
+    with pytest.raises(IdentificationError) as info:
+        spec_from_step(10.0, -1.0)
+    assert info.value.field == "settling_s"
 
 
 def test_a_velocity_loop_gets_its_bandwidth() -> None:

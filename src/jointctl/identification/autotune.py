@@ -94,20 +94,56 @@ def design(mass: float, damping: float, *, loop: str, bandwidth_hz: float, zeta:
     return {"p": float(p), "i": 0.0, "d": float(d)}
 
 
-def _model_overshoot(model: LoopModel) -> float:
+#: The settling band of a step: within 2 % of the step from then on.
+SETTLING_BAND = 0.02
+
+
+def _model_step(model: LoopModel, seconds: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
     import control
 
-    closed = model.closed_loop()
-    n = int(round(3.0 / model.period_s))
-    t = np.arange(n) * model.period_s
-    _, y = control.step_response(closed, T=t)
-    y = np.asarray(y).ravel()
+    t = np.arange(int(round(seconds / model.period_s))) * model.period_s
+    _, y = control.step_response(model.closed_loop(), T=t)
+    return t, np.asarray(y).ravel()
+
+
+def _model_overshoot(model: LoopModel) -> float:
+    _, y = _model_step(model)
     final = y[-1]
     return float((y.max() - final) / final)
 
 
+def settling_time(t: np.ndarray, y: np.ndarray, start: float, final: float, band: float = SETTLING_BAND) -> float:
+    """The time [s] from ``t[0]`` after which ``y`` stays within ``band`` of the step ``final - start``
+    around ``final``; NaN when it never does."""
+    outside = np.nonzero(np.abs(y - final) > band * abs(final - start))[0]
+    if outside.size == 0:
+        return 0.0
+    if outside[-1] == y.size - 1:
+        return math.nan
+    return float(t[outside[-1] + 1] - t[0])
+
+
+def spec_from_step(overshoot_pct: float, settling_s: float) -> tuple[float, float]:
+    """(ζ, -3 dB bandwidth [Hz]) of the second-order loop whose step overshoots ``overshoot_pct`` and
+    settles within 2 % in ``settling_s``: ζ from the overshoot, then ωn from the settling time of the
+    unit second-order step with that ζ (computed, not the 4/(ζωn) rule of thumb, which is up to 40 %
+    off at these damping ratios)."""
+    if not (isinstance(overshoot_pct, (int, float)) and 0 < overshoot_pct < 100):
+        raise IdentificationError("must be between 0 and 100 (an underdamped step)", field="overshoot_pct",
+                                  value=overshoot_pct)
+    if not (isinstance(settling_s, (int, float)) and math.isfinite(settling_s) and settling_s > 0):
+        raise IdentificationError("must be a positive number of seconds", field="settling_s", value=settling_s)
+    zeta = zeta_of(overshoot_pct / 100)
+    wd = math.sqrt(1 - zeta**2)
+    t = np.linspace(0.0, 40.0 / zeta, 400_001)  # ωn = 1
+    y = 1 - np.exp(-zeta * t) / wd * np.sin(wd * t + math.acos(zeta))
+    wn = settling_time(t, y, 0.0, 1.0) / settling_s
+    return zeta, wn * bandwidth_ratio(zeta) / (2 * math.pi)
+
+
 def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: float = 0.7, step: float,
-             plant: dict | None = None, out_dir: str | Path | None = None, check_on_robot: bool = True) -> dict:
+             plant: dict | None = None, out_dir: str | Path | None = None, check_on_robot: bool = True,
+             settling_s: float | None = None) -> dict:
     """Tune ``controller_name`` of the scenario ``scenario_for(overrides)`` gives (see the module
     docstring); the metrics (gains, predicted and simulated figures). ``plant`` as for
     :func:`jointctl.identification.frequency_response.bode`."""
@@ -123,7 +159,7 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
     gains = controller.pid.gains
     result = tune(controller_name, joint, loop, session.loop.period_s, plant, session.robot, pose, gravity,
                   controller.effort_limit, {"p": gains.p, "i": gains.i, "d": gains.d}, bandwidth_hz=bandwidth_hz,
-                  zeta=zeta, step=step)
+                  zeta=zeta, step=step, settling_s=settling_s)
     session.close()
     if check_on_robot:
         result["robot"] = _check_on_robot(scenario_for, controller_name, result["gains"], loop, step, bandwidth_hz)
@@ -141,11 +177,13 @@ def _check_spec(bandwidth_hz, step) -> None:
 
 def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: dict | None, robot, pose: dict,
          gravity: float | None, effort_limit: float, previous_gains: dict, *, bandwidth_hz: float, zeta: float,
-         step: float) -> dict:
+         step: float, settling_s: float | None = None) -> dict:
     """Design the gains for the spec and predict them on the sampled model (no robot involved): the
     plant from ``plant`` (an identification's metrics, its ``gravity_load_n`` the load) or else
     ``robot``'s model at ``pose`` with ``gravity`` [N or N·m, magnitude] as the load. Refused when
-    a step of ``step`` would exceed ``effort_limit``, naming the bandwidth it allows."""
+    a step of ``step`` would exceed ``effort_limit``, naming the bandwidth it allows. ``settling_s``
+    is recorded in the spec when the spec was given as overshoot and settling time
+    (:func:`spec_from_step` made ``zeta`` and ``bandwidth_hz`` of it)."""
     if plant is not None:
         mass, damping = plant_of(plant)
         gravity = abs(float(plant.get("gravity_load_n", 0.0)))
@@ -164,17 +202,21 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     model = LoopModel(mass, damping, gains["p"], gains["i"], gains["d"], period_s, loop)
     predicted = {"bandwidth_hz": _model_bandwidth(model, bandwidth_hz)}
     if loop == "position":
-        predicted["overshoot_pct"] = 100 * _model_overshoot(model)
+        t, y = _model_step(model)
+        predicted["overshoot_pct"] = 100 * float((y.max() - y[-1]) / y[-1])
+        predicted["settling_s"] = settling_time(t, y, 0.0, float(y[-1]))
     return {"controller": controller_name, "joint": joint, "loop": loop, "plant_source": source, "mass": mass,
             "damping": damping, "gravity_load": gravity, "effort_limit": effort_limit, "step": step,
             "spec": {"bandwidth_hz": bandwidth_hz, "zeta": zeta if loop == "position" else None,
-                     "overshoot_pct": 100 * overshoot_of(zeta) if loop == "position" else None},
+                     "overshoot_pct": 100 * overshoot_of(zeta) if loop == "position" else None,
+                     "settling_s": settling_s},
             "gains": gains, "model": predicted, "previous_gains": dict(previous_gains)}
 
 
 def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: float, zeta: float = 0.7,
                      step: float, plant: dict | None = None, gravity_m_s2=(0.0, 0.0, -9.81),
-                     out_dir: str | Path | None = None, check_on_robot: bool = True) -> dict:
+                     out_dir: str | Path | None = None, check_on_robot: bool = True,
+                     settling_s: float | None = None) -> dict:
     """Tune a loop that runs on a served robot (``session.hardware`` a
     :class:`~jointctl.ros.served_hardware.ServedRobotHardware`: the served node's controller, its
     gains through dynamic_reconfigure). The design is :func:`tune`'s; the check sets the new gains
@@ -194,7 +236,7 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
     gravity = None if plant is not None else _gravity_load(session.robot, pose, joint, gravity_m_s2)
     previous = hardware.gains(controller_name)
     result = tune(controller_name, joint, loop, session.loop.period_s, plant, session.robot, pose, gravity,
-                  effort_limit, previous, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step)
+                  effort_limit, previous, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s)
     if check_on_robot:
         hardware.set_gains(controller_name, result["gains"])
         try:
@@ -308,9 +350,10 @@ def _step(session: Session, joint: str, set_reference, loop: str, step: float, *
     final = float(y[-200:].mean()) if y.size >= 400 else float(y[-max(1, y.size // 5):].mean())
     rise = final - start["value"]
     overshoot = 100 * (y.max() - final) / rise if rise > 0 else math.nan
+    settling = settling_time(np.arange(y.size) * session.loop.period_s, y, start["value"], final)
     return {"step_overshoot_pct": float(overshoot) if loop == "position" else None,
             "step_zeta": zeta_of(overshoot / 100) if loop == "position" else None,
-            "step_final": final, "step_start": start["value"]}
+            "step_settling_s": settling, "step_final": final, "step_start": start["value"]}
 
 
 def _write(out_dir, file_name: str, document: dict, controller_name: str, result: dict) -> None:
@@ -336,4 +379,5 @@ def _write(out_dir, file_name: str, document: dict, controller_name: str, result
     (out / "metrics.json").write_text(json.dumps(result, indent=2, default=float))
 
 
-__all__ = ["autotune", "autotune_servoed", "bandwidth_ratio", "design", "overshoot_of", "tune", "zeta_of"]
+__all__ = ["autotune", "autotune_servoed", "bandwidth_ratio", "design", "overshoot_of", "settling_time", "spec_from_step",
+           "tune", "zeta_of"]
