@@ -55,6 +55,7 @@ class Peer:
         self.servers = [socket.create_server(("127.0.0.1", 0)) for _ in range(2)]
         self.motion_port, self.state_port = (s.getsockname()[1] for s in self.servers)
         self.connections: list[socket.socket] = []
+        self.motion_connections: list[socket.socket] = []
         self.threads = [threading.Thread(target=self._state, daemon=True),
                         threading.Thread(target=self._motion, daemon=True)]
         for thread in self.threads:
@@ -87,6 +88,7 @@ class Peer:
 
     def _motion(self) -> None:
         while (conn := self._accept(self.servers[0])) is not None:
+            self.motion_connections.append(conn)
             reader = PacketReader(big_endian=self.big_endian)
             try:
                 while not self.closing.is_set():
@@ -104,6 +106,12 @@ class Peer:
                         conn.sendall(encode_reply(packet, ReplyCode.SUCCESS, big_endian=self.big_endian))
             except OSError:
                 continue
+
+    def drop_motion(self) -> None:
+        """Close the motion connection only (the state goes on)."""
+        for conn in self.motion_connections:
+            conn.shutdown(socket.SHUT_RDWR)  # a FIN now: close() alone waits for the thread blocked in recv
+            conn.close()
 
     def drop_connections(self) -> None:
         for conn in self.connections:
@@ -249,6 +257,26 @@ def test_a_lost_motion_connection_is_a_fault_and_is_reopened(peer) -> None:
         assert hw.fault is not None and "lost the motion connection to 127.0.0.1" in hw.fault
         command[0] = 0.35
         wait_for(lambda: (cycle(hw, 20), hw.fault)[1] is None and len(peer.points) >= 2, "reconnected and sent")
+    finally:
+        hw.close()
+
+
+def test_a_motion_connection_closed_while_idle_is_reopened_before_the_next_motion(peer) -> None:
+    # Nothing is sent while idle: the hardware must notice the closed connection by itself, or the next
+    # motion's first point would find it dead and abort a goal the state said could start.
+    hw = connected(peer, retry_s=0.05)
+    try:
+        cycle(hw, 5)
+        assert len(peer.motion_connections) == 1
+        peer.drop_motion()
+        wait_for(lambda: len(peer.motion_connections) == 2, "the motion connection reopened while idle")
+        cycle(hw)
+        assert hw.fault is None
+        hw.command_buffer(POSITION)[0] = 0.2
+        cycle(hw, 25)
+        wait_for(lambda: len(peer.points) == 1, "the first point, on the new connection")
+        cycle(hw)
+        assert peer.points[0].sequence == 0 and hw.fault is None
     finally:
         hw.close()
 

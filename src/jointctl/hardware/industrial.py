@@ -40,6 +40,7 @@ little-endian unless ``big_endian`` (the ``_bswap`` drivers). Joint ``i`` of a p
 from __future__ import annotations
 
 import queue
+import select
 import socket
 import threading
 import time
@@ -237,11 +238,18 @@ class IndustrialHardware(HardwareInterface):
     # -- the motion channel (its thread) ------------------------------------------------------------------
     def _sender(self) -> None:
         while True:
-            item = self._outbox.get()
+            try:
+                item = self._outbox.get(timeout=self.retry_s)
+            except queue.Empty:
+                # Idle: a controller that went away while nothing was sent must be noticed now, not
+                # when the next motion's first point finds the connection dead.
+                item = ()
             if item is None or self._closing.is_set():
                 return
             try:
-                if isinstance(item, tuple):  # (TOPIC, point): sent, no reply to wait for
+                if item == ():
+                    self._check_motion_alive()
+                elif isinstance(item, tuple):  # (TOPIC, point): sent, no reply to wait for
                     self._motion.sendall(encode(item[1], item[0], big_endian=self.big_endian))
                 else:
                     self._request(item)
@@ -257,6 +265,16 @@ class IndustrialHardware(HardwareInterface):
                 self._last_sent = None  # after a reconnect, the next motion starts a new trajectory
                 if not self._reconnect("motion"):
                     return
+
+    def _check_motion_alive(self) -> None:
+        """Raise ConnectionError when the idle motion connection was closed by the controller (it
+        sends nothing unasked: anything readable now is its end of the connection)."""
+        sock = self._motion
+        if sock is None:
+            return
+        readable, _, _ = select.select([sock], [], [], 0)
+        if readable and not sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT):
+            raise ConnectionError("the controller closed the motion connection")
 
     def _request(self, point: JointTrajPt) -> None:
         """Send one point as a SERVICE_REQUEST and wait for the reply (the flow control)."""
