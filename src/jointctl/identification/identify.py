@@ -6,7 +6,10 @@ the joint rests while every other joint holds; the loop runs in simulated time. 
 the measured position: should it come within ``guard_fraction`` of the range of a limit, the
 reference returns to the start at once and the identification is refused saying where it went.
 The recorded position, velocity and applied effort are fitted by
-:func:`~jointctl.identification.plant_fit.fit_plant`.
+:func:`~jointctl.identification.plant_fit.fit_plant`. On hardware that servos the joint itself (a
+robot another node serves on the ROS graph) :func:`identify_servoed` sends the same chirp to the
+joint's position loop and fits the states as they arrived; :func:`identify_states` fits states
+recorded elsewhere (a rosbag), :func:`identify_trace` a ``trace.csv``.
 
 Outputs (``out_dir``): ``trace.csv`` (robot runs), ``identify_<joint>.png`` (measured effort
 against the fitted model's, and the position) and ``metrics.json``: ``mass_kg`` /
@@ -58,7 +61,7 @@ def identify_on_robot(scenario: Scenario, joint: str, *, out_dir: str | Path | N
     session.loop.add_observer(lambda time_s: samples.append(
         (time_s, hardware.position[index], hardware.velocity[index], hardware.effort[index])))
     excitation = _excite(session, joint, controller.set_reference, amplitude=amplitude, duration_s=duration_s,
-                    f_start_hz=f_start_hz, f_end_hz=f_end_hz)
+                         f_start_hz=f_start_hz, f_end_hz=f_end_hz)
     t, q, qd, u = (np.array(column) for column in zip(*samples))
     fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction)
     return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u)
@@ -86,14 +89,9 @@ def identify_servoed(session: Session, joint: str, *, out_dir: str | Path | None
 
     hardware.start_recording()
     excitation = _excite(session, joint, set_reference, amplitude=amplitude, duration_s=duration_s,
-                    f_start_hz=f_start_hz, f_end_hz=f_end_hz)
-    stamps, q, qd, u = hardware.recorded(joint)
-    if len(stamps) < 50:
-        raise IdentificationError("too few joint states arrived during the excitation (at least 50)",
-                                  field="samples", value=len(stamps))
-    t, q, qd, u = resample_uniform(np.array(stamps) - stamps[0], q, qd, u)
-    fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction,
-                    acceleration=differences_for(t, session.loop.period_s))
+                         f_start_hz=f_start_hz, f_end_hz=f_end_hz)
+    fit, t, q, qd, u = _fit_states(*hardware.recorded(joint), session.robot.joint(joint).type,
+                                   loop_period_s=session.loop.period_s, fit_friction=fit_friction)
     return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u)
 
 
@@ -107,16 +105,23 @@ def identify_states(stamps, q, qd, u, joint: str, joint_type: str, *, source: st
     """Fit ``joint`` from joint states as they were received (``stamps`` [s], not necessarily
     uniform: a bag, a subscriber), put on a uniform grid (:func:`resample_uniform`); differences as
     :func:`differences_for` picks for a loop of ``loop_period_s``. ``source`` names where they came from."""
-    if len(stamps) < 50:
-        raise IdentificationError("too few joint states to fit (at least 50)", field="samples", value=len(stamps))
-    t, q, qd, u = resample_uniform(np.asarray(stamps, dtype=float) - stamps[0], q, qd, u)
-    fit = fit_plant(t, q, qd, u, joint_type=joint_type, fit_friction=fit_friction,
-                    acceleration=differences_for(t, loop_period_s))
+    fit, t, q, qd, u = _fit_states(stamps, q, qd, u, joint_type, loop_period_s=loop_period_s,
+                                   fit_friction=fit_friction)
     metrics = _metrics(fit, joint)
     metrics.update(trace=source, sample_period_s=float(t[1] - t[0]))
     if out_dir is not None:
         _write(out_dir, joint, fit, metrics, t, q, qd, u)
     return fit, metrics
+
+
+def _fit_states(stamps, q, qd, u, joint_type: str, *, loop_period_s: float, fit_friction: bool):
+    """(fit, t, q, qd, u): states as received, on a uniform grid from t = 0, fitted."""
+    if len(stamps) < 50:
+        raise IdentificationError("too few joint states to fit (at least 50)", field="samples", value=len(stamps))
+    t, q, qd, u = resample_uniform(np.asarray(stamps, dtype=float) - stamps[0], q, qd, u)
+    fit = fit_plant(t, q, qd, u, joint_type=joint_type, fit_friction=fit_friction,
+                    acceleration=differences_for(t, loop_period_s))
+    return fit, t, q, qd, u
 
 
 def _movable(robot, joint: str) -> None:
