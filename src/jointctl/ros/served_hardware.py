@@ -82,6 +82,17 @@ class ServedRobotHardware(HardwareInterface):
                 self._recording.append((msg.header.stamp.to_sec(), tuple(msg.position[k] for k in order),
                                         tuple(velocity[k] for k in order), tuple(effort[k] for k in order)))
 
+    def wait_for_subscribers(self, timeout_s: float = 5.0) -> None:
+        """Block until the served node has connected to every command topic: a message published
+        before that is lost, and a reference is published only when it changes."""
+        deadline = time.monotonic() + timeout_s
+        for publisher in self._publishers.values():
+            while publisher.get_num_connections() == 0:
+                if time.monotonic() > deadline:
+                    raise JointCtlError(f"no node connected to the command topic within {timeout_s:g} s",
+                                        field=publisher.resolved_name, value=None)
+                time.sleep(0.01)
+
     def wait_for_state(self, timeout_s: float = 5.0) -> None:
         """Block until a joint state naming every joint has arrived; a clear error otherwise."""
         deadline = time.monotonic() + timeout_s
@@ -236,6 +247,7 @@ def connect(namespace: str, joint_names: Sequence[str], controller: str | None =
     joint_of, interface = loops[controller]
     hardware = ServedRobotHardware(namespace, joint_names, {joint_of: (interface, controller)})
     hardware.wait_for_state()
+    hardware.wait_for_subscribers()
     hardware.set_points = {joint_of: set_point(namespace, controller)}
     hardware.hold(hardware.set_points)
     return hardware, controller
