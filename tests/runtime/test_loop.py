@@ -46,8 +46,8 @@ def test_cycle_order_input_read_update_write_observe_step(write_scenario, tmp_pa
         original_update(t, dt)
 
     session.manager.update_calls = (update,)
-    session.loop.inputs.insert(0, lambda t: events.append("input"))
-    session.loop.observers.append(lambda t: events.append("observe"))
+    session.loop.add_input(lambda t: events.append("input"), first=True)
+    session.loop.add_observer(lambda t: events.append("observe"))
     session.loop.run(cycles=1)
     assert events == ["input", "read", "update", "write", "observe", "advance"]
 

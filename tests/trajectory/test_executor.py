@@ -555,7 +555,7 @@ def test_streamed_references_are_held_with_zero_velocity_after_the_watchdog(writ
             executor.stream_reference([q], [speed])
             last.update(t=time_s, q=q)
 
-    session.loop.inputs.append(stream)
+    session.loop.add_input(stream)
     session.loop.run(duration_s=2.4)  # the abrupt hold rings (Kp 400, no D) for a while
     assert last["t"] == pytest.approx(t_stop) and last["q"] == pytest.approx(-0.46)
     for i, t in enumerate(trace.t):

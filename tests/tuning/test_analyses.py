@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import time
+
 import pytest
 
 from jointctl.scenario.spec import scenario_for_robot
 from jointctl.tuning.analyses import live_copy, run_analysis
-from jointctl.tuning.requests import RequestError, SetGain, SetGravity, parse_request
+from jointctl.tuning.requests import Analyse, RequestError, SetGain, SetGravity, parse_request
 from jointctl.tuning.tuner import Tuner
 
 CONTROLLER = "joint1_position_controller"
@@ -53,3 +55,74 @@ def test_an_unknown_controller_is_refused(tuner) -> None:
     with pytest.raises(RequestError) as info:
         run_analysis(tuner, parse_request('{"type": "bode", "controller": "nope"}'))
     assert info.value.field == "controller"
+
+
+@pytest.fixture
+def running(tuner):
+    """The tuner's loop running on its own thread at 3x the wall clock, as the page runs it."""
+    import control  # noqa: F401  (imported now: under a loop paced faster than 1x, an import in the analysis
+    import scipy.signal  # noqa: F401  thread waits for the GIL for seconds; at 1x it takes 0.5 s)
+
+    from jointctl.tuning.runner import LiveRunner
+
+    runner = LiveRunner(tuner, speed=3.0)
+    runner.start()
+    yield tuner
+    runner.stop()
+    assert runner.error is None
+
+
+def live(kind: str) -> Analyse:
+    return parse_request(f'{{"type": "{kind}", "controller": "{CONTROLLER}", "live": true}}')
+
+
+def test_a_live_identification_excites_the_running_robot_and_gives_its_reference_back(running) -> None:
+    controller = running.commandable[CONTROLLER]
+    hooks = (running.loop.inputs, running.loop.observers)
+    reference, before_s = controller.reference, running.loop.time_s
+    seen: list[float] = []
+    running.loop.add_observer(lambda t: seen.append(running.hardware.position[0]))
+    reply = run_analysis(running, live("identify"))
+    assert reply["live"] is True
+    result = reply["result"]
+    # The running robot carried the excitation, in its own loop time: 1 s settle, 10 s chirp, 2 s settle.
+    assert running.loop.time_s - before_s >= 13.0
+    assert max(seen) - min(seen) > result["excitation"]["amplitude"]
+    assert result["mass_kg"] == pytest.approx(1.01, rel=0.02)
+    assert result["damping_n_s_m"] == pytest.approx(10.0, rel=0.02)
+    assert result["gravity_load_n"] == pytest.approx(1.01 * 9.81, rel=0.01)
+    assert running.loop.inputs == hooks[0] and running.loop.observers[:-1] == hooks[1]  # its hooks are gone
+    deadline = time.monotonic() + 5
+    while controller.reference != reference and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert controller.reference == reference
+
+
+def test_a_live_bode_sweeps_the_running_loop(running, monkeypatch) -> None:
+    import jointctl.tuning.analyses as analyses
+
+    monkeypatch.setattr(analyses, "BODE_POINTS", 3)
+    monkeypatch.setattr(analyses, "BODE_BAND_HZ", (2.5, 4.0))
+    before_s = running.loop.time_s
+    reply = run_analysis(running, live("bode"))
+    result = reply["result"]
+    assert reply["live"] is True and len(result["gain_db"]) == 3
+    assert running.loop.time_s - before_s >= result["simulated_s"]
+    # Around the chapter's ωn = sqrt(400/1.01) (3.17 Hz) the running robot follows its loop model.
+    for measured, modelled in zip(result["gain_db"], result["model"]["gain_db"]):
+        assert measured == pytest.approx(modelled, abs=0.5)
+
+
+def test_live_analyses_are_refused_when_they_cannot_run(running) -> None:
+    with pytest.raises(RequestError) as info:
+        parse_request(f'{{"type": "autotune", "controller": "{CONTROLLER}", "bandwidth_hz": 5, "live": true}}')
+    assert info.value.field == "live"
+    with pytest.raises(RequestError) as info:
+        parse_request(f'{{"type": "identify", "controller": "{CONTROLLER}", "live": 1}}')
+    assert info.value.field == "live" and info.value.value == 1
+    running.handle(parse_request('{"type": "pause"}'))
+    time.sleep(0.2)  # the loop stops at its next cycle
+    time_s = running.loop.time_s
+    with pytest.raises(RequestError, match="paused") as info:
+        run_analysis(running, live("identify"))
+    assert info.value.field == "live" and running.loop.time_s == time_s

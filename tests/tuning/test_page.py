@@ -260,6 +260,21 @@ def test_identify_bode_and_autotune_panels_and_applying_and_reverting_the_gains(
     assert browser.find_element("id", GAIN_P).get_attribute("value") == "400"
 
 
+def test_identify_on_the_live_robot(browser, tune):
+    server = tune("one_dof", "--controllers", "position", "--speed", "3")  # 13 s of loop time in under 5 s
+    open_page(browser, server)
+    choose(browser, "analysis-controller", CONTROLLER)
+    browser.find_element("id", "analysis-live").click()
+    wait_for(lambda: (page_state(browser, "lastTime") or 0) > 0.1, what="data on the plot")
+    before_s = page_state(browser, "lastTime")
+    browser.find_element("id", "identify").click()
+    identified = analysis_result(browser, "identify")
+    assert identified["mass_kg"] == pytest.approx(1.01, rel=0.02)
+    assert browser.find_element("id", "analysis-status").text == f"identify of {CONTROLLER} (live robot)"
+    # It took the live robot's own time (1 s settle, 10 s chirp, 2 s settle), which the page plotted meanwhile.
+    assert page_state(browser, "lastTime") - before_s >= 13.0 - 0.1
+
+
 def test_an_autotune_the_effort_cannot_meet_is_refused_on_the_page(browser, tune):
     server = tune("one_dof", "--controllers", "position")
     open_page(browser, server)

@@ -344,8 +344,8 @@ def _step(session: Session, joint: str, set_reference, loop: str, step: float, *
         with session:
             session.run(hold_s + after_s)
     finally:
-        session.loop.inputs.remove(drive)
-        session.loop.observers.remove(record)
+        session.loop.remove_input(drive)
+        session.loop.remove_observer(record)
     y = np.array(samples)
     final = float(y[-200:].mean()) if y.size >= 400 else float(y[-max(1, y.size // 5):].mean())
     rise = final - start["value"]

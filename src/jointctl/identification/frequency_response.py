@@ -137,12 +137,20 @@ def measure(scenario: Scenario, controller_name: str, frequencies_hz, *, amplitu
     """Stepped-sine measurement of ``controller_name``'s closed loop on the scenario's simulated robot,
     in simulated time (see the module docstring); (points, context) where context holds the loop,
     joint, amplitude, gains and the loop time it took."""
-    session = Session(scenario)
+    return measure_in_session(Session(scenario), controller_name, frequencies_hz, amplitude=amplitude,
+                              settle_s=settle_s, measure_periods=measure_periods, measure_s=measure_s)
+
+
+def measure_in_session(session, controller_name: str, frequencies_hz, *, amplitude: float | None = None,
+                       settle_s: float = 1.5, measure_periods: int = 4,
+                       measure_s: float = 1.0) -> tuple[list[Point], dict]:
+    """:func:`measure` in a session that exists (a live robot's too); the gains are those the
+    controller had when the sweep began."""
     controller, loop = loop_controller(session.manager, controller_name)
+    gains = controller.pid.gains
     points, context = sweep(session, controller.joint, frequencies_hz, controller.set_reference, loop=loop,
                             amplitude=amplitude, settle_s=settle_s, measure_periods=measure_periods,
                             measure_s=measure_s)
-    gains = controller.pid.gains
     context["gains"] = {"p": gains.p, "i": gains.i, "d": gains.d}
     return points, context
 
@@ -220,7 +228,7 @@ def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: 
         span = math.ceil(max(measure_periods, measure_s * f)) / f
         schedule.append((f, t0, t0 + settle, t0 + settle + span))
         t0 += settle + span
-    times, references, responses = [], [], []
+    samples: list[tuple[float, float, float]] = []  # one tuple per cycle: whole even when read from another thread
     state = {"k": 0}
     offset = rest if loop == "position" else 0.0
 
@@ -246,9 +254,7 @@ def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: 
         set_reference(given[0])
 
     def record(time_s: float) -> None:
-        times.append(time_s)
-        references.append(given[0])
-        responses.append(measured[index])
+        samples.append((time_s, given[0], measured[index]))
 
     started = session.loop.time_s
     session.loop.add_input(drive)
@@ -257,11 +263,11 @@ def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: 
         with session:
             session.run(t0 + 0.1 - started)
     finally:
-        session.loop.inputs.remove(drive)
-        session.loop.observers.remove(record)
+        session.loop.remove_input(drive)
+        session.loop.remove_observer(record)
     # Reference and response at the same loop time: the response measured at the start of a cycle,
     # the reference that cycle's (held over the period that follows).
-    t, r, y = np.array(times), np.array(references), np.array(responses)
+    t, r, y = np.array(list(samples)).T
     points = []
     for f, start, measure_from, end in schedule:
         window = (t >= start) & (t < end)
@@ -396,5 +402,5 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
     return path
 
 
-__all__ = ["LoopModel", "Point", "analyse", "bode", "compare", "loop_controller", "measure", "measure_servoed", "model_plant", "plant_of",
-           "sweep", "write_bode"]
+__all__ = ["LoopModel", "Point", "analyse", "bode", "compare", "loop_controller", "measure", "measure_in_session",
+           "measure_servoed", "model_plant", "plant_of", "sweep", "write_bode"]

@@ -49,7 +49,16 @@ def identify_on_robot(scenario: Scenario, joint: str, *, out_dir: str | Path | N
                       amplitude: float | None = None, duration_s: float = 10.0, f_start_hz: float = 0.2,
                       f_end_hz: float = 3.0, fit_friction: bool = True) -> tuple[PlantFit, dict]:
     """Excite ``joint`` of the scenario's robot and fit it; (fit, metrics). See the module docstring."""
-    session = Session(scenario, out_dir=out_dir)
+    return identify_in_session(Session(scenario, out_dir=out_dir), joint, out_dir=out_dir, amplitude=amplitude,
+                               duration_s=duration_s, f_start_hz=f_start_hz, f_end_hz=f_end_hz,
+                               fit_friction=fit_friction)
+
+
+def identify_in_session(session, joint: str, *, out_dir: str | Path | None = None, amplitude: float | None = None,
+                        duration_s: float = 10.0, f_start_hz: float = 0.2, f_end_hz: float = 3.0,
+                        fit_friction: bool = True) -> tuple[PlantFit, dict]:
+    """The same in a session that exists (a new one, or a live robot's: anything with ``loop``,
+    ``hardware``, ``robot``, ``manager`` and ``run``), through the joint's own position controller."""
     _movable(session.robot, joint)
     controller = session.manager.commanding(joint)
     if not isinstance(controller, JointPositionController):
@@ -58,10 +67,16 @@ def identify_on_robot(scenario: Scenario, joint: str, *, out_dir: str | Path | N
     hardware = session.hardware
     index = hardware.joint_index(joint)
     samples: list[tuple[float, float, float, float]] = []
-    session.loop.add_observer(lambda time_s: samples.append(
-        (time_s, hardware.position[index], hardware.velocity[index], hardware.effort[index])))
-    excitation = _excite(session, joint, controller.set_reference, amplitude=amplitude, duration_s=duration_s,
-                         f_start_hz=f_start_hz, f_end_hz=f_end_hz)
+
+    def record(time_s: float) -> None:
+        samples.append((time_s, hardware.position[index], hardware.velocity[index], hardware.effort[index]))
+
+    session.loop.add_observer(record)
+    try:
+        excitation = _excite(session, joint, controller.set_reference, amplitude=amplitude, duration_s=duration_s,
+                             f_start_hz=f_start_hz, f_end_hz=f_end_hz)
+    finally:
+        session.loop.remove_observer(record)
     t, q, qd, u = (np.array(column) for column in zip(*samples))
     fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction)
     return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u)
@@ -156,7 +171,7 @@ def _excite(session: Session, joint: str, set_reference, *, amplitude, duration_
         with session:
             session.run(SETTLE_S + duration_s + SETTLE_AFTER_S)
     finally:
-        session.loop.inputs.remove(excite)
+        session.loop.remove_input(excite)
     if tripped:
         raise IdentificationError(f"the joint came within {band:.3g} of a limit of [{lower:g}, {upper:g}]: the "
                                   "excitation was stopped and the joint returned; give a smaller --amplitude",
@@ -237,4 +252,4 @@ def _write(out_dir, joint, fit: PlantFit, metrics: dict, t, q, qd, u) -> None:
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
 
 
-__all__ = ["Chirp", "identify_on_robot", "identify_servoed", "identify_states", "identify_trace"]
+__all__ = ["Chirp", "identify_in_session", "identify_on_robot", "identify_servoed", "identify_states", "identify_trace"]

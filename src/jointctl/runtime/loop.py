@@ -46,8 +46,11 @@ class ControlLoop:
         self.period_s = period_s
         self.clock = clock or SimulatedClock()
         self.cycle = 0
-        self.inputs: list[CycleHook] = []
-        self.observers: list[CycleHook] = []
+        #: Hooks run at the start (inputs) and end (observers) of every cycle, in order. Tuples,
+        #: replaced whole by add_*/remove_*: a thread may change them while the loop runs, and
+        #: each cycle runs the hooks as they were when it began.
+        self.inputs: tuple[CycleHook, ...] = ()
+        self.observers: tuple[CycleHook, ...] = ()
         self.wall_time_s = 0.0
         self._stop_requested = False
 
@@ -56,11 +59,20 @@ class ControlLoop:
         """Loop time [s] of the cycle running (updated as each cycle ends), or of the next to run."""
         return self.cycle * self.period_s
 
-    def add_input(self, hook: CycleHook) -> None:
-        self.inputs.append(hook)
+    def add_input(self, hook: CycleHook, *, first: bool = False) -> None:
+        """Run ``hook(t)`` at the start of every cycle, after the inputs added before it (or before
+        them all, with ``first``)."""
+        self.inputs = (hook, *self.inputs) if first else (*self.inputs, hook)
+
+    def remove_input(self, hook: CycleHook) -> None:
+        self.inputs = tuple(h for h in self.inputs if h is not hook)
 
     def add_observer(self, hook: CycleHook) -> None:
-        self.observers.append(hook)
+        """Run ``hook(t)`` at the end of every cycle, after the hardware was written."""
+        self.observers = (*self.observers, hook)
+
+    def remove_observer(self, hook: CycleHook) -> None:
+        self.observers = tuple(h for h in self.observers if h is not hook)
 
     def request_stop(self) -> None:
         """Ask a running :meth:`run` to return after the current cycle (thread-safe)."""
@@ -78,8 +90,6 @@ class ControlLoop:
         elif cycles < 0:
             raise ValueError(f"cycles must not be negative, got {cycles}")
         period = self.period_s
-        inputs = tuple(self.inputs)
-        observers = tuple(self.observers)
         hw = self.hardware
         read, write, advance = hw.read, hw.write, hw.advance
         manager = self.manager
@@ -96,7 +106,7 @@ class ControlLoop:
         try:
             while k != end and not self._stop_requested:
                 t = k * period
-                for hook in inputs:
+                for hook in self.inputs:
                     hook(t)
                 read()
                 failed = False
@@ -113,7 +123,7 @@ class ControlLoop:
                 if failed:
                     check_outputs(t)
                 write()
-                for hook in observers:
+                for hook in self.observers:
                     hook(t)
                 advance(period)
                 k += 1

@@ -1,11 +1,19 @@
 """The tuning page's Identify, Bode and Auto-tune panels: jointctl's identification tools on the page's robot.
 
-Each runs on a simulated copy of the page's robot: its scenario with the gains and gravity live on
-the page now, starting from the pose the robot holds now, in simulated time (a second or two of wall-clock time), so the live loop is never
-disturbed and nothing changes until the page applies gains through its usual gain requests (the
-Auto-tune panel's Apply, and Revert to the gains the analysis started from). Replies::
+With ``"live": true``, Identify and Bode run on the page's robot itself instead: the excitation
+joins its running loop (after the page's command sources, which it overrides meanwhile), in its
+loop time (13 s for an identification, about a minute for the sweep at speed 1), and the
+controller's reference goes back to what it was when it ends; a pause or reset meanwhile ends it
+with an error. Auto-tune always designs and checks on a copy.
 
-    {"type": "analysis", "request": "identify", "controller": C, "result": {mass_kg, damping..., r_squared}}
+Otherwise each runs on a simulated copy of the page's robot: its scenario with the gains and
+gravity live on the page now, starting from the pose the robot holds now, in simulated time (a
+second or two of wall-clock time), so the live loop is never disturbed and nothing changes until
+the page applies gains through its usual gain requests (the Auto-tune panel's Apply, and Revert to
+the gains the analysis started from). Replies (``live``: where it ran)::
+
+    {"type": "analysis", "request": "identify", "controller": C, "live": false,
+        "result": {mass_kg, damping..., r_squared}}
     {"type": "analysis", "request": "bode", "controller": C, "result": {frequencies_hz, gain_db, phase_deg,
         model: {gain_db, phase_deg, margins...}, bandwidth_hz, resonance_hz, phase_minus_90_hz...}}
     {"type": "analysis", "request": "autotune", "controller": C, "result": {gains, previous_gains, model,
@@ -16,6 +24,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
+import time
 from typing import Any
 
 import numpy as np
@@ -52,30 +62,104 @@ def live_copy(tuner, overrides=()) -> Scenario:
     return dataclasses.replace(scenario, **changes)
 
 
+class LiveSession:
+    """The page's running robot as a session for jointctl's identification tools (a ``live``
+    analysis): their hooks join its loop while it runs (the excitation after the page's own command
+    sources, so it has the last word), and :meth:`run` waits while the loop thread runs that much
+    loop time. A pause, a reset or a shutdown meanwhile ends the analysis with a RequestError."""
+
+    def __init__(self, tuner) -> None:
+        self.tuner = tuner
+        self.loop, self.hardware, self.manager = tuner.loop, tuner.hardware, tuner.manager
+        self.robot = tuner.session.robot
+
+    def run(self, duration_s: float) -> None:
+        tuner, loop = self.tuner, self.loop
+        end, epoch = loop.time_s + duration_s - 1e-9, tuner.epoch
+        last_s, moved_at = loop.time_s, time.monotonic()
+        while loop.time_s < end:
+            if tuner.paused or tuner.shutdown or tuner.reset_wanted or tuner.epoch != epoch:
+                raise RequestError("the robot was paused, reset or stopped during the live analysis: nothing "
+                                   "was measured", field="live", value=True)
+            if loop.time_s != last_s:
+                last_s, moved_at = loop.time_s, time.monotonic()
+            elif time.monotonic() - moved_at > LIVE_STALL_S:
+                raise RequestError(f"the robot's loop has not run for {LIVE_STALL_S:g} s", field="live", value=True)
+            time.sleep(LIVE_POLL_S)
+
+    def __enter__(self) -> LiveSession:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        pass
+
+
+#: How often a live analysis looks at the loop's time, and how long the loop may stand still [s].
+LIVE_POLL_S = 0.005
+LIVE_STALL_S = 5.0
+_live = threading.Lock()  # one live analysis at a time: two excitations would fight over the joint
+
+
+def run_live(tuner, request: Analyse, controller) -> dict[str, Any]:
+    """Run an identify or bode ``request`` on the page's running robot (:class:`LiveSession`; the
+    request reader takes ``live`` for those two only); the controller's reference goes back to what
+    it was when it ends."""
+    from jointctl.identification.frequency_response import compare, measure_in_session
+    from jointctl.identification.identify import identify_in_session
+
+    if tuner.paused:
+        raise RequestError("the robot is paused: resume it to analyse it live", field="live", value=True)
+    if not _live.acquire(blocking=False):
+        raise RequestError("a live analysis is already running", field="live", value=True)
+    session = LiveSession(tuner)
+    previous = controller.reference
+    try:
+        if request.kind == "identify":
+            return identify_in_session(session, controller.joint)[1]
+        hardware = tuner.hardware
+        pose = dict(zip(hardware.joint_names, hardware.position))
+        points, context = measure_in_session(session, request.controller, bode_frequencies())
+        pose[context["joint"]] = context["rest"]
+        return compare(points, context, request.controller, None, session.robot, pose)
+    finally:
+        tuner._pending.append(lambda t: controller.set_reference(previous))
+        _live.release()
+
+
+def bode_frequencies() -> np.ndarray:
+    """The Bode panel's sweep: ``BODE_POINTS`` log-spaced frequencies over ``BODE_BAND_HZ``."""
+    return np.logspace(math.log10(BODE_BAND_HZ[0]), math.log10(BODE_BAND_HZ[1]), BODE_POINTS)
+
+
 def run_analysis(tuner, request: Analyse) -> dict[str, Any]:
-    """Run ``request`` on a simulated copy of the page's robot (see the module docstring)."""
+    """Run ``request`` on a simulated copy of the page's robot, or on the robot itself when it is
+    ``live`` (see the module docstring)."""
     from jointctl.identification.autotune import autotune
     from jointctl.identification.frequency_response import bode
     from jointctl.identification.identify import identify_on_robot
 
-    if tuner.sim is None:
-        raise RequestError("analyses run on a simulated copy of the robot; this one is real hardware",
-                           field="type", value=request.kind)
     controller = tuner.commandable.get(request.controller)
     if controller is None:
         raise RequestError(f"no joint controller of that name (controllers: {', '.join(tuner.commandable)})",
                            field="controller", value=request.controller)
+    if request.live:
+        result = run_live(tuner, request, controller)
+        return {"type": "analysis", "request": request.kind, "controller": request.controller, "live": True,
+                "result": result}
+    if tuner.sim is None:
+        raise RequestError("analyses run on a simulated copy of the robot; this one is real hardware (analyse it "
+                           "live)", field="type", value=request.kind)
     if request.kind == "identify":
         _, metrics = identify_on_robot(live_copy(tuner), controller.joint)
         result = metrics
     elif request.kind == "bode":
-        frequencies = np.logspace(math.log10(BODE_BAND_HZ[0]), math.log10(BODE_BAND_HZ[1]), BODE_POINTS)
-        result = bode(live_copy(tuner), request.controller, frequencies)
+        result = bode(live_copy(tuner), request.controller, bode_frequencies())
     else:
         result = autotune(lambda overrides: live_copy(tuner, overrides), request.controller,
                           bandwidth_hz=request.spec["bandwidth_hz"], zeta=request.spec["zeta"],
                           step=request.spec["step"])
-    return {"type": "analysis", "request": request.kind, "controller": request.controller, "result": result}
+    return {"type": "analysis", "request": request.kind, "controller": request.controller, "live": False,
+            "result": result}
 
 
-__all__ = ["BODE_BAND_HZ", "BODE_POINTS", "live_copy", "run_analysis"]
+__all__ = ["BODE_BAND_HZ", "BODE_POINTS", "LiveSession", "bode_frequencies", "live_copy", "run_analysis", "run_live"]

@@ -12,10 +12,11 @@ arithmetic on ``i`` and ``t`` and a list of math functions, nothing else). Every
     {"type": "joint", "joint": J}          the joint the page plots and measures
     {"type": "gravity", "value": -9.81}    gravity along the world z axis [m/s²]
     {"type": "pause"} {"type": "resume"} {"type": "reset"} {"type": "drop_weight"} {"type": "save_gains"}
-    {"type": "identify", "controller": C}                          fit the plant of C's joint
-    {"type": "bode", "controller": C}                              C's closed-loop frequency response
+    {"type": "identify", "controller": C[, "live": true]}          fit the plant of C's joint
+    {"type": "bode", "controller": C[, "live": true]}              C's closed-loop frequency response
     {"type": "autotune", "controller": C, "zeta": 0.7, "bandwidth_hz": 5, "step": 0.1}   gains for a spec
-        (analyses: run on a simulated copy of the robot with the live gains; they change nothing live)
+        (analyses: run on a simulated copy of the robot with the live gains and pose, changing nothing
+        live; with "live": true, identify and bode excite the running robot itself, in its loop time)
 """
 
 from __future__ import annotations
@@ -81,11 +82,13 @@ class Control:
 @dataclass(frozen=True)
 class Analyse:
     """An analysis of ``controller``'s joint or loop: ``kind`` identify, bode or autotune; ``spec``
-    the autotune's ``zeta``, ``bandwidth_hz`` and ``step``."""
+    the autotune's ``zeta``, ``bandwidth_hz`` and ``step``; ``live``: on the running robot itself
+    (identify and bode) rather than on a simulated copy."""
 
     kind: str
     controller: str
     spec: dict[str, float]
+    live: bool = False
 
 
 ANALYSES = ("identify", "bode", "autotune")
@@ -98,8 +101,8 @@ _FIELDS = {
     "joint": ({"joint"}, set()),
     "gravity": ({"value"}, set()),
     **{action: (set(), set()) for action in CONTROLS},
-    "identify": ({"controller"}, set()),
-    "bode": ({"controller"}, set()),
+    "identify": ({"controller"}, {"live"}),
+    "bode": ({"controller"}, {"live"}),
     "autotune": ({"controller", "bandwidth_hz"}, {"zeta", "step"}),
 }
 
@@ -156,7 +159,11 @@ def parse_request(text: Any) -> Request:
                 if finite_number(value) is None or not value > 0:
                     raise RequestError("must be a positive number", field=key, value=value)
                 spec[key] = float(value)
-        return Analyse(kind, _string(message, "controller"), spec)
+        live = message.get("live", False)
+        if not isinstance(live, bool):
+            raise RequestError("must be true (on the live robot) or false (on a simulated copy)", field="live",
+                               value=live)
+        return Analyse(kind, _string(message, "controller"), spec, live)
     return Control(kind)
 
 

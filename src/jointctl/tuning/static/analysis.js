@@ -1,6 +1,7 @@
 // jointctl tuning page: the Identify, Bode and Auto-tune panel. Each button sends one request; the
 // server runs jointctl's identification tools on a simulated copy of the robot with the live gains
-// and answers "analysis" (or "error"). Apply sends the tuned gains as ordinary gain requests; Revert
+// (or, for Identify and Bode with "on the live robot" ticked, on the running robot itself) and
+// answers "analysis" (or "error"). Apply sends the tuned gains as ordinary gain requests; Revert
 // sends the gains the analysis started from.
 "use strict";
 
@@ -26,12 +27,14 @@
 
   function run(kind, extra) {
     state.running = kind;
-    $("analysis-status").textContent = kind + ": running on a simulated copy…";
+    const live = Boolean(extra && extra.live);
+    $("analysis-status").textContent = kind + (live ? ": running on the live robot…" : ": running on a simulated copy…");
     page.send(Object.assign({ type: kind, controller: $("analysis-controller").value }, extra || {}));
   }
 
-  $("identify").addEventListener("click", () => run("identify"));
-  $("bode").addEventListener("click", () => run("bode"));
+  const live = () => ({ live: $("analysis-live").checked });
+  $("identify").addEventListener("click", () => run("identify", live()));
+  $("bode").addEventListener("click", () => run("bode", live()));
   $("autotune").addEventListener("click", () => run("autotune", {
     zeta: number("tune-zeta"), bandwidth_hz: number("tune-bandwidth"), step: number("tune-step") }));
 
@@ -39,7 +42,7 @@
     const m = event.detail;
     state.running = null;
     state.results[m.request] = m.result;
-    $("analysis-status").textContent = m.request + " of " + m.controller + " (simulated copy)";
+    $("analysis-status").textContent = m.request + " of " + m.controller + (m.live ? " (live robot)" : " (simulated copy)");
     if (m.request === "identify") showIdentify(m.result);
     if (m.request === "bode") showBode(m.result);
     if (m.request === "autotune") showAutotune(m.controller, m.result);
