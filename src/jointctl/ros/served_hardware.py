@@ -77,8 +77,9 @@ class ServedRobotHardware(HardwareInterface):
             self._latest, self._latest_at = msg, time.monotonic()
             if self._recording is not None and self._order is not None:
                 order = self._order
-                effort = msg.effort if len(msg.effort) == len(names) else (0.0,) * len(names)
-                velocity = msg.velocity if len(msg.velocity) == len(names) else (0.0,) * len(names)
+                missing = (None,) * len(names)  # a publisher may leave velocity or effort out
+                effort = msg.effort if len(msg.effort) == len(names) else missing
+                velocity = msg.velocity if len(msg.velocity) == len(names) else missing
                 self._recording.append((msg.header.stamp.to_sec(), tuple(msg.position[k] for k in order),
                                         tuple(velocity[k] for k in order), tuple(effort[k] for k in order)))
 
@@ -123,6 +124,11 @@ class ServedRobotHardware(HardwareInterface):
         k = self.joint_index(joint)
         with self._lock:
             rows, self._recording = self._recording or [], None
+        for quantity, column in (("velocity", 2), ("effort", 3)):
+            if any(r[column][k] is None for r in rows):
+                raise JointCtlError(f"the joint states carry no {quantity} for every joint: identification "
+                                    "needs position, velocity and the effort applied",
+                                    field=f"/{self.namespace}/joint_states", value=quantity)
         return ([r[0] for r in rows], [r[1][k] for r in rows], [r[2][k] for r in rows], [r[3][k] for r in rows])
 
     def read(self) -> None:
@@ -205,7 +211,7 @@ class ServedRobotHardware(HardwareInterface):
                                 field="--controller", value=server) from None
 
 
-def served_controllers(namespace: str, joint_names: Sequence[str]) -> dict[str, dict[str, tuple[str, str]]]:
+def served_controllers(namespace: str, joint_names: Sequence[str]) -> dict[str, tuple[str, str]]:
     """The served node's started joint loops: ``{controller: (joint, interface)}`` read from the
     parameter server (``/<namespace>/<controller>/type``, ``joint``) and kept when some node
     subscribes to ``/<namespace>/<controller>/command``."""
