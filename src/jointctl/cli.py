@@ -393,7 +393,8 @@ def _served(args: argparse.Namespace, *, controller: str | None = None, joint: s
 
     if args.target not in builtin_robots():
         raise JointCtlError("--hardware ros needs a built-in robot (its model)", field="target", value=args.target)
-    scenario = scenario_for_robot(args.target, "position", [*args.overrides, "start_controllers=[joint_state_controller]"])
+    scenario = scenario_for_robot(args.target, "position",
+                                  [*args.overrides, "start_controllers=[joint_state_controller]"])
     namespace = args.namespace
     if namespace is None:
         tree = read_yaml(scenario.controller_file)

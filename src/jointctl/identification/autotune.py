@@ -379,5 +379,5 @@ def _write(out_dir, file_name: str, document: dict, controller_name: str, result
     (out / "metrics.json").write_text(json.dumps(result, indent=2, default=float))
 
 
-__all__ = ["autotune", "autotune_servoed", "bandwidth_ratio", "design", "overshoot_of", "settling_time", "spec_from_step",
-           "tune", "zeta_of"]
+__all__ = ["autotune", "autotune_servoed", "bandwidth_ratio", "design", "overshoot_of", "settling_time",
+           "spec_from_step", "tune", "zeta_of"]
