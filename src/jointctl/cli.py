@@ -387,6 +387,7 @@ def _served(args: argparse.Namespace, *, controller: str | None = None, joint: s
     the built-in robot's model, its loop found on the graph, the session paced to the wall clock;
     the loop's reference put back where it was on the way out."""
     from jointctl.control.manager import read_yaml
+    from jointctl.model.loader import load_robot_model
     from jointctl.ros.served_hardware import connect
     from jointctl.scenario.session import Session
     from jointctl.scenario.spec import builtin_robots, scenario_for_robot
@@ -401,8 +402,6 @@ def _served(args: argparse.Namespace, *, controller: str | None = None, joint: s
         namespace = next(iter(tree)) if isinstance(tree, dict) and len(tree) == 1 else None
         if namespace is None:
             raise JointCtlError("the robot's controller file has no single namespace: give it", field="--namespace")
-    from jointctl.model.loader import load_robot_model
-
     names = [j.name for j in load_robot_model(scenario.robot.description).movable_joints]
     hardware, name = connect(namespace, names, controller, joint=joint)
     try:
@@ -473,6 +472,7 @@ def _bode_served(args: argparse.Namespace, frequencies) -> dict:
 
     if not args.controller:
         raise JointCtlError("is required (the loop to sweep)", field="--controller")
+    plant = _plant_file(args.plant)  # read before the robot moves
     with _served(args, controller=args.controller) as (session, name):
         hardware = session.hardware
         joint = next(j for j, (_, c) in hardware.controllers.items() if c == name)
@@ -480,8 +480,8 @@ def _bode_served(args: argparse.Namespace, frequencies) -> dict:
         context["gains"] = hardware.gains(name)
         pose = dict(zip(hardware.joint_names, hardware.position))
         pose[joint] = context["rest"]
-        return compare(points, context, f"/{hardware.namespace}/{name}", _plant_file(args.plant), session.robot,
-                       pose, out_dir=args.out)
+        return compare(points, context, f"/{hardware.namespace}/{name}", plant, session.robot, pose,
+                       out_dir=args.out)
 
 
 def _plant_file(path: Path | None) -> dict | None:
@@ -532,16 +532,17 @@ def _autotune(args: argparse.Namespace) -> int:
                             "cannot read or set: there is nothing of jointctl's to tune", field="--hardware",
                             value="industrial")
     zeta, bandwidth_hz, settling_s = _autotune_spec(args)
+    plant = _plant_file(args.plant)
     if args.hardware == "ros":
         from jointctl.identification.autotune import autotune_servoed
 
         with _served(args, controller=args.controller) as (session, name):
             result = autotune_servoed(session, name, bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step,
-                                      plant=_plant_file(args.plant), out_dir=args.out, settling_s=settling_s)
+                                      plant=plant, out_dir=args.out, settling_s=settling_s)
     else:
         result = autotune(lambda overrides: _loop_scenario(args, overrides), args.controller,
-                          bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step, plant=_plant_file(args.plant),
-                          out_dir=args.out, settling_s=settling_s)
+                          bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step, plant=plant, out_dir=args.out,
+                          settling_s=settling_s)
     print(json.dumps(result, indent=2, default=float))
     print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0
