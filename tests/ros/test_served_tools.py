@@ -95,3 +95,7 @@ def test_with_nothing_served_the_tools_say_so(ros_env, tmp_path) -> None:
                       "--out", str(tmp_path), check=False)
     assert result.returncode == 2 and "/one_DOF_robot" in result.stderr and "served" in result.stderr
     assert not (tmp_path / "metrics.json").exists()
+    # A bad --plant is named before anything is looked for on the graph (a sweep would be wasted on it).
+    result = jointctl(ros_env, "bode", "one_dof", "--hardware", "ros", "--controller", CONTROLLER, "--plant",
+                      str(tmp_path / "missing.json"), "--out", str(tmp_path), check=False)
+    assert result.returncode == 2 and "--plant" in result.stderr and "/one_DOF_robot" not in result.stderr
