@@ -267,7 +267,7 @@ def test_a_motion_connection_closed_while_idle_is_reopened_before_the_next_motio
     hw = connected(peer, retry_s=0.05)
     try:
         cycle(hw, 5)
-        assert len(peer.motion_connections) == 1
+        wait_for(lambda: len(peer.motion_connections) == 1, "the double to accept the motion connection")
         peer.drop_motion()
         wait_for(lambda: len(peer.motion_connections) == 2, "the motion connection reopened while idle")
         cycle(hw)
