@@ -270,8 +270,7 @@ def test_a_motion_connection_closed_while_idle_is_reopened_before_the_next_motio
         wait_for(lambda: len(peer.motion_connections) == 1, "the double to accept the motion connection")
         peer.drop_motion()
         wait_for(lambda: len(peer.motion_connections) == 2, "the motion connection reopened while idle")
-        cycle(hw)
-        assert hw.fault is None
+        wait_for(lambda: (cycle(hw), hw.fault)[1] is None, "no fault once reopened")
         hw.command_buffer(POSITION)[0] = 0.2
         cycle(hw, 25)
         wait_for(lambda: len(peer.points) == 1, "the first point, on the new connection")
