@@ -202,7 +202,7 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     model = LoopModel(mass, damping, gains["p"], gains["i"], gains["d"], period_s, loop)
     predicted = {"bandwidth_hz": _model_bandwidth(model, bandwidth_hz)}
     if loop == "position":
-        t, y = _model_step(model)
+        t, y = _model_step(model, seconds=max(3.0, 3.0 * (settling_s or 0.0)))
         predicted["overshoot_pct"] = 100 * float((y.max() - y[-1]) / y[-1])
         predicted["settling_s"] = settling_time(t, y, 0.0, float(y[-1]))
     return {"controller": controller_name, "joint": joint, "loop": loop, "plant_source": source, "mass": mass,
