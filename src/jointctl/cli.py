@@ -475,7 +475,7 @@ def _bode_served(args: argparse.Namespace, frequencies) -> dict:
     plant = _plant_file(args.plant)  # read before the robot moves
     with _served(args, controller=args.controller) as (session, name):
         hardware = session.hardware
-        joint = next(j for j, (_, c) in hardware.controllers.items() if c == name)
+        joint = hardware.joint_of(name)
         points, context = measure_servoed(session, joint, frequencies, amplitude=args.amplitude)
         context["gains"] = hardware.gains(name)
         pose = dict(zip(hardware.joint_names, hardware.position))

@@ -34,7 +34,7 @@ from scipy.optimize import fsolve
 
 from jointctl.errors import ConfigError
 from jointctl.identification.frequency_response import (LoopModel, _crossing, loop_controller, measure,
-                                                         measure_servoed, model_plant, plant_of)
+                                                         measure_servoed, model_plant, plant_of, servo_reference)
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
@@ -224,10 +224,7 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
     back whatever happens; the YAML is the served node's controller parameters with the new gains."""
     _check_spec(bandwidth_hz, step)
     hardware = session.hardware
-    joints = [j for j, (_, name) in hardware.controllers.items() if name == controller_name]
-    if not joints:
-        raise ConfigError("not a loop of this hardware", field="--controller", value=controller_name)
-    joint = joints[0]
+    joint = hardware.joint_of(controller_name)
     loop = hardware.controllers[joint][0]
     hardware.read()
     pose = {name: hardware.position[k] for k, name in enumerate(hardware.joint_names)}
@@ -298,19 +295,14 @@ def _check_on_robot(scenario_for, controller_name: str, gains: dict, loop: str, 
 def _check_servoed(session: Session, joint: str, loop: str, step: float, bandwidth_hz: float) -> dict:
     """The served robot with the new gains: a step from rest and a shorter sweep (real time), the
     sweep's gain taken relative to a fifth of the bandwidth."""
-    from jointctl.hardware.interface import POSITION, VELOCITY
-
-    hardware = session.hardware
-    command = hardware.command_buffer(POSITION if loop == "position" else VELOCITY)
-    index = hardware.joint_index(joint)
+    _, set_reference = servo_reference(session.hardware, joint)
     frequencies = [bandwidth_hz / 5, *np.logspace(math.log10(bandwidth_hz / 2), math.log10(bandwidth_hz * 2), 7)]
     points, _ = measure_servoed(session, joint, frequencies, amplitude=step, settle_s=0.5, measure_periods=3,
                                 measure_s=0.5)
     gain = np.array([p.gain_db for p in points[1:]])
-    figures = _step(session, joint, lambda value: command.__setitem__(index, value), loop, step, hold_s=0.5,
-                    after_s=2.0)
+    figures = _step(session, joint, set_reference, loop, step, hold_s=0.5, after_s=2.0)
     figures["bandwidth_hz"] = _crossing(np.array(frequencies[1:]), gain - points[0].gain_db, -3.0103)
-    command[index] = figures["step_start"] if loop == "position" else 0.0  # back where it started
+    set_reference(figures["step_start"] if loop == "position" else 0.0)  # back where it started
     with session:
         session.run(1.0)
     return figures

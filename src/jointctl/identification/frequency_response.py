@@ -177,24 +177,31 @@ def measure_servoed(session: Session, joint: str, frequencies_hz, *, amplitude: 
     sine goes straight to the joint's position (or velocity) command interface, the response is the
     position (or velocity) the hardware reports. ``session`` must start no controller that commands
     the joint; it runs as it is paced (the wall clock, for real hardware)."""
+    owner = session.manager.commanding(joint)
+    if owner is not None:
+        raise ConfigError(f"controller {owner.name!r} commands it; start none that does", field="--joint", value=joint)
+    loop, set_reference = servo_reference(session.hardware, joint)
+    return sweep(session, joint, frequencies_hz, set_reference, loop=loop, amplitude=amplitude,
+                 settle_s=settle_s, measure_periods=measure_periods, measure_s=measure_s)
+
+
+def servo_reference(hardware, joint: str) -> tuple[str, object]:
+    """("position" | "velocity", set_reference) for a joint the hardware servos itself: the reference
+    is written to its position (else velocity) command interface; a ConfigError naming ``--joint``
+    when it has neither."""
     from jointctl.hardware.interface import POSITION, VELOCITY
 
-    hardware = session.hardware
     index = hardware.joint_index(joint, field="--joint")
     interfaces = hardware.command_interfaces(joint)
     loop = "position" if POSITION in interfaces else "velocity" if VELOCITY in interfaces else None
     if loop is None:
         raise ConfigError("the hardware has no position or velocity loop for it", field="--joint", value=joint)
-    owner = session.manager.commanding(joint)
-    if owner is not None:
-        raise ConfigError(f"controller {owner.name!r} commands it; start none that does", field="--joint", value=joint)
     command = hardware.command_buffer(POSITION if loop == "position" else VELOCITY)
 
     def set_reference(value: float) -> None:
         command[index] = value
 
-    return sweep(session, joint, frequencies_hz, set_reference, loop=loop, amplitude=amplitude,
-                 settle_s=settle_s, measure_periods=measure_periods, measure_s=measure_s)
+    return loop, set_reference
 
 
 def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: str, amplitude: float | None,
@@ -403,4 +410,4 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
 
 
 __all__ = ["LoopModel", "Point", "analyse", "bode", "compare", "loop_controller", "measure", "measure_in_session",
-           "measure_servoed", "model_plant", "plant_of", "sweep", "write_bode"]
+           "measure_servoed", "model_plant", "plant_of", "servo_reference", "sweep", "write_bode"]

@@ -29,7 +29,7 @@ import numpy as np
 from jointctl.control.joint_controllers import JointPositionController
 from jointctl.errors import ConfigError
 from jointctl.identification.excitation import Chirp, safe_chirp
-from jointctl.hardware.interface import POSITION
+from jointctl.identification.frequency_response import servo_reference
 from jointctl.identification.plant_fit import (IdentificationError, PlantFit, accelerations, fit_plant,
                                                resample_uniform)
 from jointctl.scenario.session import Session
@@ -93,15 +93,10 @@ def identify_servoed(session: Session, joint: str, *, out_dir: str | Path | None
     paced as it is (the wall clock) and starts no controller that commands the joint."""
     hardware = session.hardware
     _movable(session.robot, joint)
-    index = hardware.joint_index(joint, field="--joint")
-    if POSITION not in hardware.command_interfaces(joint):
+    loop, set_reference = servo_reference(hardware, joint)
+    if loop != "position":
         raise ConfigError("the hardware has no position loop for it (identification follows a position "
                           "reference)", field="--joint", value=joint)
-    command = hardware.command_buffer(POSITION)
-
-    def set_reference(q: float) -> None:
-        command[index] = q
-
     hardware.start_recording()
     excitation = _excite(session, joint, set_reference, amplitude=amplitude, duration_s=duration_s,
                          f_start_hz=f_start_hz, f_end_hz=f_end_hz)

@@ -59,6 +59,9 @@ class ServedRobotHardware(HardwareInterface):
         self._publishers = {joint: rospy.Publisher(f"/{self.namespace}/{name}/command", Float64, queue_size=10)
                             for joint, (_, name) in self.controllers.items()}
         self._sent: dict[str, float] = {}
+        # (joint, its command list, its index, its publisher): resolved once, used every cycle by write().
+        self._outputs = [(joint, self.command_buffer(interface), self.joint_index(joint), self._publishers[joint])
+                         for joint, (interface, _) in self.controllers.items()]
         #: Each loop's reference when this side connected (joint -> value or None), restored on leaving.
         self.set_points: dict[str, float | None] = {}
         self.fault = "no joint state yet"
@@ -153,11 +156,18 @@ class ServedRobotHardware(HardwareInterface):
         return frozenset({entry[0]}) if entry else frozenset()
 
     def write(self) -> None:
-        for joint, (interface, _) in self.controllers.items():
-            value = self.command_buffer(interface)[self.joint_index(joint)]
+        for joint, command, index, publisher in self._outputs:
+            value = command[index]
             if self._sent.get(joint) != value:
-                self._publishers[joint].publish(Float64(value))
+                publisher.publish(Float64(value))
                 self._sent[joint] = value
+
+    def joint_of(self, controller: str) -> str:
+        """The joint ``controller`` commands; a ConfigError naming ``--controller`` if none here."""
+        for joint, (_, name) in self.controllers.items():
+            if name == controller:
+                return joint
+        raise ConfigError("not a loop of this hardware", field="--controller", value=controller)
 
     def advance(self, period_s: float) -> None:
         """Nothing: the served robot runs on its own clock (pace the loop with the wall clock)."""

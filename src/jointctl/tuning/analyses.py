@@ -122,7 +122,7 @@ def run_live(tuner, request: Analyse, controller) -> dict[str, Any]:
         pose[context["joint"]] = context["rest"]
         return compare(points, context, request.controller, None, session.robot, pose)
     finally:
-        tuner._pending.append(lambda t: controller.set_reference(previous))
+        tuner.at_next_cycle(lambda t: controller.set_reference(previous))
         _live.release()
 
 

@@ -267,6 +267,11 @@ class Tuner:
         if self.paused or self.reset_wanted or self.shutdown:
             self.loop.request_stop()
 
+    def at_next_cycle(self, change: Callable[[float], None]) -> None:
+        """Run ``change(loop_time_s)`` in the loop thread at the start of the next cycle (or at once
+        when paused, by :meth:`apply_pending`)."""
+        self._pending.append(change)
+
     def apply_pending(self) -> None:
         """Apply queued changes while the loop is not running (paused)."""
         pending, t = self._pending, self.loop.time_s
