@@ -73,7 +73,7 @@ def _stop(process: subprocess.Popen) -> None:
 
 
 def _throughput() -> list[Result]:
-    from jointctl.industrial.simple_message import CommType, JointTrajPt, PacketReader, Ping, encode
+    from jointctl.wire.simple_message import CommType, JointTrajPt, PacketReader, Ping, encode
 
     process, motion, _ = _controller("one_dof")
     try:
@@ -127,7 +127,7 @@ class _ReportingPeer:
     """A controller stand-in: JOINT_POSITION every 20 ms with a new value each, send times kept."""
 
     def __init__(self) -> None:
-        from jointctl.industrial.simple_message import JointPosition, RobotStatus, encode
+        from jointctl.wire.simple_message import JointPosition, RobotStatus, encode
 
         self.sent: dict[float, float] = {}
         self.closing = threading.Event()

@@ -20,7 +20,7 @@ def run() -> list[Result]:
     from jointctl.scenario.session import Session
     from jointctl.scenario.spec import load_scenario
     from jointctl.sim.rendering import OffscreenRenderer
-    from jointctl.tools.video import FrameCapture, VideoSettings, robot_camera
+    from jointctl.visuals.video import FrameCapture, VideoSettings, robot_camera
 
     scenario = load_scenario("one_dof_drop_weight")
     with Session(scenario) as session:

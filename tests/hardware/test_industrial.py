@@ -12,7 +12,7 @@ import pytest
 
 from jointctl.hardware.industrial import HardwareUnreachable, IndustrialHardware
 from jointctl.hardware.interface import POSITION
-from jointctl.industrial.simple_message import (
+from jointctl.wire.simple_message import (
     STOP_TRAJECTORY,
     CommType,
     JointPosition,

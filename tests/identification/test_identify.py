@@ -48,7 +48,7 @@ def test_the_excitation_starts_and_ends_at_rest_where_it_started_inside_the_limi
     written = json.loads((out / "metrics.json").read_text())
     assert written["mass_kg"] == metrics["mass_kg"]
     assert (out / "identify_joint1.png").stat().st_size > 10_000 and (out / "trace.csv").is_file()
-    from jointctl.tools.recorder import load_trace
+    from jointctl.recording.trace import load_trace
 
     trace = load_trace(out / "trace.csv")
     q, qd = trace.joint("joint1", "position"), trace.joint("joint1", "velocity")
@@ -93,7 +93,7 @@ def test_the_guard_returns_the_joint_before_a_limit(tmp_path) -> None:
     scenario = scenario_for_robot("one_dof", "position", ["initial_positions.joint1=-0.85"])
     with pytest.raises(IdentificationError, match="came within 0.05 of a limit") as info:
         identify_on_robot(scenario, "joint1", f_start_hz=3.17, f_end_hz=3.17, out_dir=tmp_path)
-    from jointctl.tools.recorder import load_trace
+    from jointctl.recording.trace import load_trace
 
     q = load_trace(tmp_path / "trace.csv").joint("joint1", "position")
     assert -1.0 < q.min() and q.max() < 0.0  # never beyond the limits

@@ -7,7 +7,7 @@ import json
 import pytest
 
 from jointctl.errors import ConfigError, ExpressionError, JointCtlError
-from jointctl.tools.command_sources import ExpressionSource, StepSource
+from jointctl.commands.sources import ExpressionSource, StepSource
 from jointctl.tuning.requests import (MAX_REQUEST_CHARS, Control, RequestError, SelectJoint, SetGain, SetGravity,
                                       SetSource, parse_request)
 

@@ -12,7 +12,7 @@ import yaml
 from jointctl.control.manager import ControllerManager
 from jointctl.errors import ConfigError, JointCtlError
 from jointctl.scenario.spec import scenario_for_robot
-from jointctl.tools.response_analysis import second_order_frequency_response, second_order_theory
+from jointctl.metrics.response import second_order_frequency_response, second_order_theory
 from jointctl.tuning.requests import RequestError, parse_request
 from jointctl.tuning.tuner import Tuner
 from tests.faulty_controllers import FAULTY_TYPE

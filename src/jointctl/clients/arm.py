@@ -328,31 +328,20 @@ def play_path_file(sender: GoalSender, path: str | Path, *, timing: str = "chapt
     return sender.send(sender.plan(rows, timing=timing))
 
 
-# -- command-line entry points (wired in jointctl.cli) ----------------------------------------
+# -- command-line entry points (wired in jointctl.cli.arm_clients, which picks the sender) ---------
 
-def _open_sender(ros: bool, realtime: bool, speed: float, out_dir: Path | None):
-    if not ros:
-        return InProcessGoalSender.open(realtime=realtime, speed=speed, out_dir=out_dir)
-    try:
-        from jointctl.ros.arm_client import RosGoalSender
-    except ImportError as exc:
-        raise JointCtlError(f"ROS 1 is not available ({exc}); install it with 'make ros'") from None
-    return RosGoalSender()
-
-
-def prompt_command(*, realtime: bool = False, speed: float = 1.0, out_dir: Path | None = None,
-                   ros: bool = False) -> int:
-    """``jointctl prompt arm7dof [--ros]``."""
-    with _open_sender(ros, realtime, speed, out_dir) as sender:
+def prompt_command(sender: GoalSender) -> int:
+    """``jointctl prompt arm7dof [--ros]`` on an opened ``sender`` (closed here)."""
+    with sender:
         status = run_prompter(sender)
     _wrote(sender)
     return status
 
 
-def play_command(pathfile: Path, *, timing: str = "chapter", realtime: bool = False, speed: float = 1.0,
-                 out_dir: Path | None = None, ros: bool = False) -> int:
-    """``jointctl play PATHFILE [--ros]``: 0 when the goal succeeds, 1 otherwise."""
-    with _open_sender(ros, realtime, speed, out_dir) as sender:
+def play_command(sender: GoalSender, pathfile: Path, *, timing: str = "chapter") -> int:
+    """``jointctl play PATHFILE [--ros]`` on an opened ``sender`` (closed here): 0 when the goal succeeds,
+    1 otherwise."""
+    with sender:
         outcome = play_path_file(sender, pathfile, timing=timing, out=sys.stdout)
         print(f"goal {describe(outcome)}")
         print(f"final joint angles {format_angles(outcome.positions)}")

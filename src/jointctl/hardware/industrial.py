@@ -48,7 +48,7 @@ from collections.abc import Sequence
 
 from jointctl.errors import JointCtlError, MalformedPacket
 from jointctl.hardware.interface import POSITION, HardwareInterface
-from jointctl.industrial.simple_message import (
+from jointctl.wire.simple_message import (
     END_TRAJECTORY,
     MAX_JOINTS,
     START_TRAJECTORY_DOWNLOAD,

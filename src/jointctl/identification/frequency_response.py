@@ -5,7 +5,7 @@ or a velocity loop, ``JointVelocityController``) follows a sine around where it 
 frequency after the other (``frequencies_hz``, log-spaced by default), each held until the
 transient has died (``settle_s`` and at least two periods) and then measured over whole periods
 (at least ``measure_periods`` and ``measure_s``): gain and phase of the response at the reference's
-frequency by a least-squares sine fit (:func:`jointctl.tools.response_analysis.sinusoid_response`).
+frequency by a least-squares sine fit (:func:`jointctl.metrics.response.sinusoid_response`).
 The reference is position only (velocity reference 0), as the chapter's command topic gives it:
 the PID's derivative acts on the measured speed. A velocity loop's reference carries a slow
 position term as well, a tenth of the lowest frequency, so that gravity does not walk the joint to
@@ -42,7 +42,7 @@ from jointctl.identification.plant_fit import IdentificationError
 from jointctl.model.loader import load_robot_model
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
-from jointctl.tools.response_analysis import sinusoid_response
+from jointctl.metrics.response import sinusoid_response
 
 
 @dataclass(frozen=True)

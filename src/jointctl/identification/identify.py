@@ -34,8 +34,8 @@ from jointctl.identification.plant_fit import (IdentificationError, PlantFit, ac
                                                resample_uniform)
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
-from jointctl.tools.figures import plot_series
-from jointctl.tools.recorder import load_trace
+from jointctl.recording.figures import plot_series
+from jointctl.recording.trace import load_trace
 
 #: Rest before the excitation, for the joint to settle where its controller holds it [s].
 SETTLE_S = 1.0

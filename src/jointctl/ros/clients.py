@@ -4,9 +4,9 @@
   ``enter displacement amplitude: `` and ``enter freq (in Hz): ``, then publishes at 100 Hz
   ``x = A·sin(2πft) - 0.5`` to ``/<ns>/<joint>_position_controller/command`` and
   ``v = 2πfA·cos(2πft)`` to ``/<ns>/<joint>_velocity_controller/command`` (std_msgs/Float64)
-  until Ctrl-C or SIGTERM. The values come from :class:`~jointctl.tools.command_sources.SineSource`.
+  until Ctrl-C or SIGTERM. The values come from :class:`~jointctl.commands.sources.SineSource`.
 - :func:`traj_client_command` (``jointctl traj-client``): the example trajectory client. Sends
-  the coarse, irregularly sampled sine (:func:`~jointctl.tools.trajectory_clients.coarse_sine`,
+  the coarse, irregularly sampled sine (:func:`~jointctl.commands.sine_trajectory.coarse_sine`,
   mapped as ``-0.5 + 0.4·sin(t)`` like ``scenarios/one_dof_trajectory.yaml``) to the
   ``example_trajectory/TrajAction`` server and waits for the result.
 - :class:`~jointctl.ros.arm_client.RosGoalSender`: the prompter and playfile
@@ -95,7 +95,7 @@ def sine_command(*, namespace: str = "one_DOF_robot", joint: str = "joint1") -> 
     """``jointctl sine``: ask, then publish until Ctrl-C / SIGTERM. Returns the exit status."""
     from std_msgs.msg import Float64
 
-    from jointctl.tools.command_sources import SineSource
+    from jointctl.commands.sources import SineSource
 
     require_master()
     try:
@@ -141,7 +141,7 @@ def traj_client_command(*, seed: int = 7, server: str = "example_traj_action_ser
     from example_trajectory.msg import TrajAction, TrajGoal
 
     from jointctl.ros.conversions import trajectory_to_ros
-    from jointctl.tools.trajectory_clients import coarse_sine
+    from jointctl.commands.sine_trajectory import coarse_sine
 
     states = {getattr(GoalStatus, n): n for n in ("PENDING", "ACTIVE", "PREEMPTED", "SUCCEEDED", "ABORTED",
                                                  "REJECTED", "PREEMPTING", "RECALLING", "RECALLED", "LOST")}

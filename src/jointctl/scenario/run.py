@@ -12,9 +12,9 @@ from jointctl.scenario.analyses import check_analysis
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario, builtin_scenarios, load_scenario
 from jointctl.errors import ConfigError
-from jointctl.tools.recorder import load_trace
-from jointctl.tools.video import FrameCapture, VideoSettings, robot_camera, write_video
-from jointctl.tools.viewer import LiveViewer
+from jointctl.recording.trace import load_trace
+from jointctl.visuals.video import FrameCapture, VideoSettings, robot_camera, write_video
+from jointctl.visuals.viewer import LiveViewer
 
 METRICS_FILE = "metrics.json"
 #: The demo report's videos: small GIFs only.

@@ -26,9 +26,9 @@ from jointctl.scenario.spec import Scenario
 from jointctl.sim.mjcf_builder import WorldSettings
 from jointctl.hardware.interface import HardwareInterface, SimulationDoor
 from jointctl.sim.world import MujocoWorld
-from jointctl.tools.command_sources import CommandSource, command_source_from_config
-from jointctl.tools.recorder import TraceRecorder
-from jointctl.tools.trajectory_clients import coarse_sine
+from jointctl.commands.sources import CommandSource, command_source_from_config
+from jointctl.recording.trace import TraceRecorder
+from jointctl.commands.sine_trajectory import coarse_sine
 from jointctl.trajectory.errors import InvalidTrajectory
 from jointctl.trajectory.executor import TrajectoryExecutor
 from jointctl.trajectory.messages import JointTrajectory

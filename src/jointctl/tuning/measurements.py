@@ -1,9 +1,9 @@
 """Figures of merit of the command source running now, read off the live buffer.
 
 For a step: overshoot, settling time (2 % band), the oscillation (damped) frequency and the
-fitted natural frequency and damping ratio (:func:`jointctl.tools.response_analysis.step_response`).
+fitted natural frequency and damping ratio (:func:`jointctl.metrics.response.step_response`).
 For a sine: amplitude ratio and phase lag at the sine's frequency, over the latest whole periods
-after the transient (:func:`~jointctl.tools.response_analysis.sinusoid_response`). The response is
+after the transient (:func:`~jointctl.metrics.response.sinusoid_response`). The response is
 the quantity the commanded controller controls (position or velocity) of its joint.
 """
 
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from jointctl.tools.response_analysis import AnalysisError, sinusoid_response, step_response
+from jointctl.metrics.response import AnalysisError, sinusoid_response, step_response
 from jointctl.tuning.live_buffer import LiveBuffer
 
 STEP_LEAD_S = 0.1  # record kept before the step [s]

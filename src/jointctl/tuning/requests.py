@@ -1,7 +1,7 @@
 """What the tuning page may ask, read from the JSON text of one websocket message.
 
 Client text is only ever parsed as JSON and checked field by field; it is never evaluated
-(an expression source is parsed by :mod:`jointctl.tools.expression`, which accepts
+(an expression source is parsed by :mod:`jointctl.commands.expression`, which accepts
 arithmetic on ``i`` and ``t`` and a list of math functions, nothing else). Every refusal is a
 :class:`RequestError` naming the field and the value. The requests::
 
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from jointctl.errors import JointCtlError
-from jointctl.tools.command_sources import CommandSource, command_source_from_config
+from jointctl.commands.sources import CommandSource, command_source_from_config
 from jointctl.validate import finite_number
 
 MAX_REQUEST_CHARS = 16 * 1024 * 1024

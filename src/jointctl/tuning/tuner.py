@@ -26,8 +26,8 @@ from jointctl.errors import ConfigError
 from jointctl.scenario.session import Session, object_spawner
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.objects import ObjectSpec, object_from_config
-from jointctl.tools.command_sources import CommandSource, command_source_from_config
-from jointctl.tools.video import robot_camera
+from jointctl.commands.sources import CommandSource, command_source_from_config
+from jointctl.visuals.video import robot_camera
 from jointctl.tuning.gains import GainGroup, gain_groups, gains_yaml
 from jointctl.tuning.live_buffer import LiveBuffer
 from jointctl.tuning.measurements import SourceRun, measure

@@ -24,7 +24,7 @@ from jointctl.scenario.analyses.sine import analyse_sine, analyse_velocity_sine
 from jointctl.scenario.analyses.step import analyse_step
 from jointctl.scenario.analyses.trajectory import analyse_trajectory_tracking
 from jointctl.scenario.session import Session
-from jointctl.tools.recorder import Trace
+from jointctl.recording.trace import Trace
 
 Analysis = Callable[[Session, Trace, Path, dict[str, Any]], dict[str, Any]]
 

@@ -13,8 +13,8 @@ from jointctl.errors import ConfigError
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.analyses.common import rms_tracking_error, run_variant
 from jointctl.scenario.session import Session
-from jointctl.tools import figures
-from jointctl.tools.recorder import Trace
+from jointctl.recording import figures
+from jointctl.recording.trace import Trace
 
 
 def analyse_arm_pose(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:

@@ -14,8 +14,8 @@ from jointctl.errors import ConfigError
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import flatten
-from jointctl.tools import figures
-from jointctl.tools.recorder import Trace, load_trace
+from jointctl.recording import figures
+from jointctl.recording.trace import Trace, load_trace
 
 CONTACT_THRESHOLD_N = 1.0  # sensed force beyond the unloaded reading that counts as contact
 STEADY_WINDOW_S = 1.0      # steady values are means over the last second of the run

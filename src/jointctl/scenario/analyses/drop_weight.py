@@ -17,8 +17,8 @@ from jointctl.scenario.analyses.common import (
     sensor_link_mass,
 )
 from jointctl.scenario.session import Session
-from jointctl.tools import figures
-from jointctl.tools.recorder import Trace
+from jointctl.recording import figures
+from jointctl.recording.trace import Trace
 
 
 def contact_episodes(force_z: np.ndarray, unloaded_n: float) -> int:

@@ -46,8 +46,8 @@ from jointctl.errors import ConfigError, ControllerError
 from jointctl.model.mjcf import rpy_to_matrix
 from jointctl.model.robot_model import RobotModel
 from jointctl.scenario.session import Session
-from jointctl.tools import figures
-from jointctl.tools.recorder import Trace
+from jointctl.recording import figures
+from jointctl.recording.trace import Trace
 from jointctl.trajectory.executor import TrajectoryExecutor
 
 #: Time after the goal starts before the tracking lag is measured [s]: the jump from the hold pose

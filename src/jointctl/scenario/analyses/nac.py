@@ -21,8 +21,8 @@ from jointctl.scenario.analyses.common import (
     sensor_link_mass,
 )
 from jointctl.scenario.session import Session
-from jointctl.tools import figures
-from jointctl.tools.recorder import Trace
+from jointctl.recording import figures
+from jointctl.recording.trace import Trace
 
 
 def nac_loaded_decay_rate(*, moving_mass_kg: float, load_kg: float, joint_damping: float, velocity_gain: float,

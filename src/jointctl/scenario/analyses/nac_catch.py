@@ -20,8 +20,8 @@ from jointctl.scenario.analyses.common import (
     run_variant,
 )
 from jointctl.scenario.session import Session
-from jointctl.tools import figures
-from jointctl.tools.recorder import Trace
+from jointctl.recording import figures
+from jointctl.recording.trace import Trace
 
 
 def analyse_nac_catch(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:

@@ -9,9 +9,9 @@ from typing import Any
 from jointctl.errors import ConfigError
 from jointctl.scenario.analyses.common import analysed_joint, command_config, joint_plant, plot_effort
 from jointctl.scenario.session import Session
-from jointctl.tools import figures
-from jointctl.tools.recorder import Trace
-from jointctl.tools.response_analysis import (
+from jointctl.recording import figures
+from jointctl.recording.trace import Trace
+from jointctl.metrics.response import (
     first_order_frequency_response,
     second_order_frequency_response,
     sinusoid_response,

@@ -7,9 +7,9 @@ from typing import Any
 
 from jointctl.scenario.analyses.common import analysed_joint, command_config, joint_plant, plot_effort
 from jointctl.scenario.session import Session
-from jointctl.tools import figures
-from jointctl.tools.recorder import Trace
-from jointctl.tools.response_analysis import second_order_theory, step_response
+from jointctl.recording import figures
+from jointctl.recording.trace import Trace
+from jointctl.metrics.response import second_order_theory, step_response
 
 
 def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:

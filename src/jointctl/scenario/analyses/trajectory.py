@@ -10,8 +10,8 @@ import numpy as np
 from jointctl.errors import ConfigError
 from jointctl.scenario.analyses.common import analysed_joint, rms_tracking_error, run_variant
 from jointctl.scenario.session import Session
-from jointctl.tools import figures
-from jointctl.tools.recorder import Trace
+from jointctl.recording import figures
+from jointctl.recording.trace import Trace
 
 
 def analyse_trajectory_tracking(session: Session, trace: Trace, out: Path,

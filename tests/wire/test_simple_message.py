@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from jointctl.errors import JointCtlError, MalformedPacket
-from jointctl.industrial.simple_message import (
+from jointctl.wire.simple_message import (
     BODY_BYTES,
     END_TRAJECTORY,
     MAX_JOINTS,

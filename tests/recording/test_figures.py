@@ -8,7 +8,7 @@ import matplotlib.image as mpimg
 import numpy as np
 import pytest
 
-from jointctl.tools.figures import DPI, FIGSIZE_IN, plot_command_and_position, plot_series
+from jointctl.recording.figures import DPI, FIGSIZE_IN, plot_command_and_position, plot_series
 
 PIXELS = (round(FIGSIZE_IN[1] * DPI), round(FIGSIZE_IN[0] * DPI))  # (rows, cols)
 

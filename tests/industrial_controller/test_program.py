@@ -11,19 +11,19 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from jointctl.industrial.interpolator import (
+from jointctl.industrial_controller.interpolator import (
     ERROR_BAD_VELOCITY,
     ERROR_NOT_FINITE,
     ERROR_POSITION_LIMIT,
     JointLimits,
 )
-from jointctl.industrial.program import (
+from jointctl.industrial_controller.program import (
     ERROR_MALFORMED_POINT,
     ERROR_NO_DOWNLOAD,
     ControllerProgram,
     MotionConnection,
 )
-from jointctl.industrial.simple_message import (
+from jointctl.wire.simple_message import (
     END_TRAJECTORY,
     START_TRAJECTORY_DOWNLOAD,
     STOP_TRAJECTORY,

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from jointctl.errors import ExpressionError
-from jointctl.tools.expression import FUNCTIONS, MAX_DEPTH, MAX_NODES, MAX_TEXT_LENGTH, parse_expression
+from jointctl.commands.expression import FUNCTIONS, MAX_DEPTH, MAX_NODES, MAX_TEXT_LENGTH, parse_expression
 
 
 def refused(text: str) -> str:
@@ -150,7 +150,7 @@ def test_syntax_error_on_second_line_names_line_and_column() -> None:
 
 def test_ten_megabyte_text_is_refused_before_it_is_parsed(monkeypatch) -> None:
     text = "1+" * 5_000_000 + "1"
-    from jointctl.tools import expression as module
+    from jointctl.commands import expression as module
 
     def never(*_args, **_kwargs):
         raise AssertionError("a text over the limit reached the parser")

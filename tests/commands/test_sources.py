@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from jointctl.errors import ConfigError, ExpressionError
-from jointctl.tools.command_sources import (
+from jointctl.commands.sources import (
     CommandSource,
     ConstantSource,
     ExpressionSource,

@@ -14,8 +14,8 @@ import pytest
 from jointctl.errors import ConfigError, JointCtlError
 from jointctl.hardware.industrial import IndustrialHardware
 from jointctl.hardware.interface import POSITION
-from jointctl.industrial.controller import ControllerUnavailable, SimulatedController
-from jointctl.industrial.simple_message import (
+from jointctl.industrial_controller.controller import ControllerUnavailable, SimulatedController
+from jointctl.wire.simple_message import (
     END_TRAJECTORY,
     START_TRAJECTORY_DOWNLOAD,
     STOP_TRAJECTORY,

@@ -10,7 +10,7 @@ import struct
 import pytest
 
 from jointctl.errors import JointCtlError
-from jointctl.industrial.interpolator import (
+from jointctl.industrial_controller.interpolator import (
     ERROR_BAD_DURATION,
     ERROR_BAD_VELOCITY,
     ERROR_JOINT_COUNT,

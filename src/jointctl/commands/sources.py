@@ -29,7 +29,7 @@ from dataclasses import dataclass, field as dataclass_field
 from typing import Any
 
 from jointctl.errors import ConfigError, ExpressionError
-from jointctl.tools.expression import Expression, parse_expression
+from jointctl.commands.expression import Expression, parse_expression
 
 __all__ = [
     "CommandSource",
@@ -181,7 +181,7 @@ class SineSource(CommandSource):
 
 
 class ExpressionSource(CommandSource):
-    """An expression (see :mod:`jointctl.tools.expression`) published at ``rate_hz``.
+    """An expression (see :mod:`jointctl.commands.expression`) published at ``rate_hz``.
 
     Message ``k`` is published at ``t_k = k / rate_hz`` (s) with ``i = k`` and
     ``t = t_k`` and holds until the next one. A message whose evaluation fails

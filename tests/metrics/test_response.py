@@ -11,7 +11,7 @@ from scipy import signal
 from scipy.optimize import brentq
 
 from jointctl.errors import JointCtlError
-from jointctl.tools.response_analysis import (
+from jointctl.metrics.response import (
     AnalysisError,
     SineResponse,
     StepResponse,

@@ -15,7 +15,7 @@ from jointctl.scenario.run import run_scenario
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import load_scenario
 from jointctl.sim.rendering import CameraView, OffscreenRenderer
-from jointctl.tools.video import FrameCapture, VideoSettings, gif_timing, render_frames, robot_camera
+from jointctl.visuals.video import FrameCapture, VideoSettings, gif_timing, render_frames, robot_camera
 
 # At 1 m height, 4 m away on -y, looking level: the piston's top (1.5 to 1.8 m) is above eye level, against the
 # black background, and its silhouette's top is the near rim of its top face.
@@ -108,7 +108,7 @@ def test_a_gif_plays_at_the_runs_speed(fps) -> None:
 def test_a_written_gif_holds_those_delays(tmp_path) -> None:
     from PIL import Image
 
-    from jointctl.tools.video import _write_gif
+    from jointctl.visuals.video import _write_gif
 
     pictures = [np.full((24, 32, 3), 10 * k, dtype=np.uint8) for k in range(15)]  # one second at 15 fps
     gif = Image.open(_write_gif(pictures, tmp_path / "v.gif", 15.0))

@@ -7,7 +7,7 @@ or ROS-Industrial's own ``robot_state`` and motion interfaces) connects to it as
 Inside, one loop paced to the wall clock at the scenario's rate (1 kHz) runs the robot under
 jointctl's joint position controllers (the robot's ``position`` controller file: effort PIDs, the
 "servos"), whose references come from the controller's own motion program
-(:class:`~jointctl.industrial.program.ControllerProgram`, its interpolator stepped once a cycle).
+(:class:`~jointctl.industrial_controller.program.ControllerProgram`, its interpolator stepped once a cycle).
 
 Outside, two TCP servers (ROS-I's ``TcpServer``: one client at a time, re-accepting after a
 disconnect, TCP_NODELAY):
@@ -34,9 +34,9 @@ from collections.abc import Sequence
 
 from jointctl.control.joint_controllers import JointPositionController
 from jointctl.errors import ConfigError, JointCtlError
-from jointctl.industrial.interpolator import JointLimits
-from jointctl.industrial.program import ControllerProgram, MotionConnection
-from jointctl.industrial.simple_message import JointPosition, encode
+from jointctl.industrial_controller.interpolator import JointLimits
+from jointctl.industrial_controller.program import ControllerProgram, MotionConnection
+from jointctl.wire.simple_message import JointPosition, encode
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
 

@@ -7,7 +7,7 @@ import pytest
 
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import load_scenario
-from jointctl.tools.recorder import TraceRecorder, load_trace, trace_columns
+from jointctl.recording.trace import TraceRecorder, load_trace, trace_columns
 from tests.conftest import step_scenario
 
 

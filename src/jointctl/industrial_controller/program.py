@@ -4,7 +4,7 @@ Section 11.5 of the chapter: "write the equivalent of the example trajectory act
 native language of the target robot (and run it on the native robot controller)". This is that
 program, free of sockets and of the simulator: :meth:`ControllerProgram.handle` takes one packet
 of the MOTION connection and returns the reply to send (or None); :meth:`ControllerProgram.cycle`
-advances the controller's own :class:`~jointctl.industrial.interpolator.Interpolator` by one servo
+advances the controller's own :class:`~jointctl.industrial_controller.interpolator.Interpolator` by one servo
 period and returns the joint references for its servos. Both may run in different threads (a
 connection's reader and the servo loop): they share one lock.
 
@@ -44,8 +44,8 @@ from collections import deque
 from collections.abc import Callable, Sequence
 
 from jointctl.errors import MalformedPacket
-from jointctl.industrial.interpolator import Interpolator, JointLimits, Point, RefusedPoint
-from jointctl.industrial.simple_message import (
+from jointctl.industrial_controller.interpolator import Interpolator, JointLimits, Point, RefusedPoint
+from jointctl.wire.simple_message import (
     END_TRAJECTORY,
     MODE_AUTO,
     START_TRAJECTORY_DOWNLOAD,
@@ -64,7 +64,7 @@ from jointctl.industrial.simple_message import (
     encode_reply,
 )
 
-#: STATUS ``error_code`` values beyond the interpolator's (1-5, ``jointctl.industrial.interpolator``).
+#: STATUS ``error_code`` values beyond the interpolator's (1-5, ``jointctl.industrial_controller.interpolator``).
 ERROR_MALFORMED_POINT = 6    # a JOINT_TRAJ_PT whose body cannot be decoded
 ERROR_DOWNLOAD_FULL = 7      # a download longer than ``download_capacity`` points
 ERROR_NO_DOWNLOAD = 8        # END_TRAJECTORY (-3) without START_TRAJECTORY_DOWNLOAD (-1) before it
@@ -75,7 +75,7 @@ FLOW_CONTROL_POLL_S = 0.05
 
 class ControllerProgram:
     """The controller's motion program (see the module docstring). ``limits`` and ``start`` as for
-    :class:`~jointctl.industrial.interpolator.Interpolator`; ``capacity``: the streaming queue's
+    :class:`~jointctl.industrial_controller.interpolator.Interpolator`; ``capacity``: the streaming queue's
     size in points; ``download_capacity``: the longest download in points."""
 
     def __init__(self, limits: Sequence[JointLimits], start: Sequence[float], *, big_endian: bool = False,

@@ -1,0 +1,298 @@
+"""``jointctl identify``, ``bode`` and ``autotune``: a joint's plant, its loop's frequency response and gains
+for a spec, on the simulated robot, a served one (--hardware ros) or an industrial controller."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+from pathlib import Path
+
+from jointctl.cli.common import industrial_hardware, loop_hardware_arguments
+from jointctl.errors import JointCtlError
+
+
+def add_parsers(sub) -> None:
+    identify = sub.add_parser("identify", help="excite a joint (or read a recorded trace.csv or rosbag) and fit its "
+                                               "inertia, damping, Coulomb friction and gravity load")
+    identify.add_argument("target", help="a built-in robot, a scenario YAML / name, a trace.csv or a .bag")
+    identify.add_argument("--joint", required=True, help="the joint to identify")
+    loop_hardware_arguments(identify)
+    identify.add_argument("--topic", help="with a bag: its JointState topic (default: the one naming the joint)")
+    identify.add_argument("--controllers", default="position",
+                          help="with a robot: the controller file whose position controller excites the joint "
+                               "(default position)")
+    identify.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                          help="override a scenario field, e.g. initial_positions.joint1=-0.3 (repeatable)")
+    identify.add_argument("--joint-type", choices=("prismatic", "revolute", "continuous"),
+                          help="with a trace or bag: the joint's type (default: read from --robot)")
+    identify.add_argument("--robot", help="with a trace or bag: the built-in robot it was recorded on")
+    identify.add_argument("--amplitude", type=float, help="excitation amplitude [m or rad] (default: the safe one)")
+    identify.add_argument("--duration-s", type=float, default=10.0, help="excitation length [s] (default 10)")
+    identify.add_argument("--f-start-hz", type=float, default=0.2, help="chirp start frequency (default 0.2 Hz)")
+    identify.add_argument("--f-end-hz", type=float, default=3.0, help="chirp end frequency (default 3 Hz)")
+    identify.add_argument("--no-friction", action="store_true", help="fit without a Coulomb friction term")
+    identify.add_argument("--out", type=Path, default=Path("out/identify"), help="output folder")
+
+    bode = sub.add_parser("bode", help="a joint loop's closed-loop frequency response by stepped sines, beside "
+                                       "its model; bandwidth, resonance, margins")
+    bode.add_argument("target", help="a built-in robot or a scenario YAML / name")
+    bode.add_argument("--controller", help="the joint position or velocity controller to sweep (sim and ros)")
+    bode.add_argument("--joint", help="with --hardware industrial: the joint whose controller's loop to sweep")
+    loop_hardware_arguments(bode)
+    bode.add_argument("--controllers", default=None,
+                      help="with a robot: the controller file to load (default: position, or velocity for a "
+                           "velocity controller's name)")
+    bode.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                      help="override a scenario field (repeatable)")
+    bode.add_argument("--f-min-hz", type=float, default=0.5, help="lowest frequency (default 0.5 Hz)")
+    bode.add_argument("--f-max-hz", type=float, default=20.0, help="highest frequency (default 20 Hz)")
+    bode.add_argument("--points", type=int, default=20, help="frequencies, log-spaced (default 20)")
+    bode.add_argument("--amplitude", type=float, help="sine amplitude [m, rad, or per s] (default: the safe one)")
+    bode.add_argument("--plant", type=Path, help="an identification's metrics.json for the model's plant "
+                                                 "(default: the robot model's)")
+    bode.add_argument("--out", type=Path, default=Path("out/bode"), help="output folder")
+
+    tune_gains = sub.add_parser("autotune", help="PD/P gains for a damping ratio and a bandwidth, checked on the "
+                                                 "model and on the robot, written as the chapter's YAML")
+    tune_gains.add_argument("target", help="a built-in robot or a scenario YAML / name")
+    tune_gains.add_argument("--controller", required=True, help="the joint position or velocity controller to tune")
+    loop_hardware_arguments(tune_gains)
+    tune_gains.add_argument("--controllers", default=None, help="with a robot: the controller file (default: "
+                                                                "position, or velocity for a velocity controller)")
+    tune_gains.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                            help="override a scenario field (repeatable)")
+    tune_gains.add_argument("--bandwidth-hz", type=float, help="closed-loop -3 dB bandwidth [Hz]")
+    tune_gains.add_argument("--zeta", type=float, help="damping ratio of a position loop (default 0.7)")
+    tune_gains.add_argument("--overshoot-pct", type=float,
+                            help="or: a position loop's step overshoot [%%], with --settling-s")
+    tune_gains.add_argument("--settling-s", type=float, help="and the time its step takes to stay within 2 %% [s]")
+    tune_gains.add_argument("--step", type=float, default=0.1,
+                            help="the largest step [m, rad, or per s] that must not saturate the effort (default 0.1)")
+    tune_gains.add_argument("--plant", type=Path, help="an identification's metrics.json (default: the robot model)")
+    tune_gains.add_argument("--out", type=Path, default=Path("out/autotune"), help="output folder")
+    identify.set_defaults(handler=_identify)
+    bode.set_defaults(handler=_bode)
+    tune_gains.set_defaults(handler=_autotune)
+
+
+def _identify(args: argparse.Namespace) -> int:
+    from jointctl.identification.identify import identify_on_robot, identify_states, identify_trace
+    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
+
+    friction = not args.no_friction
+    if args.target.endswith((".csv", ".bag")):
+        joint_type = args.joint_type or _joint_type(args.robot, args.joint)
+        if args.target.endswith(".csv"):
+            _, metrics = identify_trace(args.target, args.joint, joint_type, out_dir=args.out, fit_friction=friction)
+        else:
+            from jointctl.ros.bag_trace import read_joint
+
+            topic, *states = read_joint(args.target, args.joint, args.topic)
+            _, metrics = identify_states(*states, args.joint, joint_type, source=f"{args.target}:{topic}",
+                                         out_dir=args.out, fit_friction=friction)
+    elif args.hardware == "industrial":
+        raise JointCtlError("an industrial controller reports no joint efforts (simple_message's JOINT_POSITION and "
+                            "JOINT_FEEDBACK carry none) and servos the joint itself: there is no plant to fit; "
+                            "measure its loop with jointctl bode --hardware industrial", field="--hardware",
+                            value="industrial")
+    elif args.hardware == "ros":
+        from jointctl.identification.identify import identify_servoed
+
+        with _served(args, joint=args.joint) as (session, _):
+            _, metrics = identify_servoed(session, args.joint, out_dir=args.out, amplitude=args.amplitude,
+                                          duration_s=args.duration_s, f_start_hz=args.f_start_hz,
+                                          f_end_hz=args.f_end_hz, fit_friction=friction)
+    else:
+        scenario = (scenario_for_robot(args.target, args.controllers, args.overrides)
+                    if args.target in builtin_robots() else load_scenario(args.target, args.overrides))
+        _, metrics = identify_on_robot(scenario, args.joint, out_dir=args.out, amplitude=args.amplitude,
+                                       duration_s=args.duration_s, f_start_hz=args.f_start_hz,
+                                       f_end_hz=args.f_end_hz, fit_friction=friction)
+    print(json.dumps(metrics, indent=2))
+    print(f"wrote {args.out}/", file=sys.stderr)
+    return 0
+
+
+@contextlib.contextmanager
+def _served(args: argparse.Namespace, *, controller: str | None = None, joint: str | None = None):
+    """(session, controller name) on the robot a node serves on the ROS graph (``--hardware ros``):
+    the built-in robot's model, its loop found on the graph, the session paced to the wall clock;
+    the loop's reference put back where it was on the way out."""
+    from jointctl.control.manager import read_yaml
+    from jointctl.model.loader import load_robot_model
+    from jointctl.ros.served_hardware import connect
+    from jointctl.scenario.session import Session
+    from jointctl.scenario.spec import builtin_robots, scenario_for_robot
+
+    if args.target not in builtin_robots():
+        raise JointCtlError("--hardware ros needs a built-in robot (its model)", field="target", value=args.target)
+    scenario = scenario_for_robot(args.target, "position",
+                                  [*args.overrides, "start_controllers=[joint_state_controller]"])
+    namespace = args.namespace
+    if namespace is None:
+        tree = read_yaml(scenario.controller_file)
+        namespace = next(iter(tree)) if isinstance(tree, dict) and len(tree) == 1 else None
+        if namespace is None:
+            raise JointCtlError("the robot's controller file has no single namespace: give it", field="--namespace")
+    names = [j.name for j in load_robot_model(scenario.robot.description).movable_joints]
+    hardware, name = connect(namespace, names, controller, joint=joint)
+    try:
+        yield Session(scenario, hardware=hardware, realtime=True), name
+    finally:
+        hardware.hold(hardware.set_points)
+        hardware.write()
+        hardware.close()
+
+
+def _bode(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from jointctl.identification.frequency_response import bode
+
+    if not (0 < args.f_min_hz < args.f_max_hz):
+        raise JointCtlError(f"must be positive and below --f-max-hz ({args.f_max_hz:g})", field="--f-min-hz",
+                            value=args.f_min_hz)
+    if not 2 <= args.points <= 200:
+        raise JointCtlError("must be 2 to 200", field="--points", value=args.points)
+    frequencies = np.logspace(np.log10(args.f_min_hz), np.log10(args.f_max_hz), args.points)
+    if args.hardware == "industrial":
+        result = _bode_industrial(args, frequencies)
+    elif args.hardware == "ros":
+        result = _bode_served(args, frequencies)
+    else:
+        if not args.controller:
+            raise JointCtlError("is required (the loop to sweep)", field="--controller")
+        result = bode(_loop_scenario(args), args.controller, frequencies, plant=_plant_file(args.plant),
+                      amplitude=args.amplitude, out_dir=args.out)
+    shown = {k: v for k, v in result.items() if not isinstance(v, (list, dict))}
+    if "model" in result:
+        shown["model"] = {k: v for k, v in result["model"].items() if not isinstance(v, list)}
+    print(json.dumps(shown, indent=2, default=float))
+    print(f"wrote {args.out}/", file=sys.stderr)
+    return 0
+
+
+def _bode_industrial(args: argparse.Namespace, frequencies) -> dict:
+    """``bode --hardware industrial``: the controller's own position loop, measured over the socket in
+    real time (no model: its servos are the controller's)."""
+    from jointctl.identification.frequency_response import analyse, measure_servoed, write_bode
+    from jointctl.scenario.session import Session
+    from jointctl.scenario.spec import builtin_robots, scenario_for_robot
+
+    if not args.joint:
+        raise JointCtlError("is required with --hardware industrial", field="--joint")
+    if args.target not in builtin_robots():
+        raise JointCtlError("--hardware industrial needs a built-in robot", field="target", value=args.target)
+    scenario = scenario_for_robot(args.target, "industrial", [*args.overrides, "start_controllers=[joint_state_controller]"])
+    hardware = industrial_hardware(args, scenario)
+    try:
+        session = Session(scenario, hardware=hardware, realtime=True)
+        points, context = measure_servoed(session, args.joint, frequencies, amplitude=args.amplitude)
+    finally:
+        hardware.close()
+    result = analyse(points, None)
+    result.update(controller=f"{args.robot_ip}:{args.motion_port} (industrial controller)", plant_source=None,
+                  **context)
+    write_bode(args.out, result, f"{args.joint} through the industrial controller at {args.robot_ip}")
+    return result
+
+
+def _bode_served(args: argparse.Namespace, frequencies) -> dict:
+    """``bode --hardware ros``: the served node's loop through its command topic and joint states, in
+    real time, beside the model with the gains its dynamic_reconfigure server holds."""
+    from jointctl.identification.frequency_response import compare, measure_servoed
+
+    if not args.controller:
+        raise JointCtlError("is required (the loop to sweep)", field="--controller")
+    plant = _plant_file(args.plant)  # read before the robot moves
+    with _served(args, controller=args.controller) as (session, name):
+        hardware = session.hardware
+        joint = hardware.joint_of(name)
+        points, context = measure_servoed(session, joint, frequencies, amplitude=args.amplitude)
+        context["gains"] = hardware.gains(name)
+        pose = dict(zip(hardware.joint_names, hardware.position))
+        pose[joint] = context["rest"]
+        return compare(points, context, f"/{hardware.namespace}/{name}", plant, session.robot, pose,
+                       out_dir=args.out)
+
+
+def _plant_file(path: Path | None) -> dict | None:
+    if path is None:
+        return None
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise JointCtlError(f"cannot read the plant ({exc})", field="--plant", value=str(path)) from None
+
+
+def _loop_scenario(args: argparse.Namespace, overrides=()):
+    """The scenario of ``bode``/``autotune``: a built-in robot with the controller file its loop needs."""
+    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
+
+    if args.target in builtin_robots():
+        controllers = args.controllers or ("velocity" if "velocity" in args.controller else "position")
+        return scenario_for_robot(args.target, controllers, [*args.overrides, *overrides])
+    return load_scenario(args.target, [*args.overrides, *overrides])
+
+
+def _autotune_spec(args: argparse.Namespace) -> tuple[float, float, float | None]:
+    """(ζ, bandwidth [Hz], settling time [s] or None) from either form of the spec."""
+    from jointctl.identification.autotune import spec_from_step
+
+    by_step = args.overshoot_pct is not None or args.settling_s is not None
+    if by_step:
+        for flag, given in (("--bandwidth-hz", args.bandwidth_hz), ("--zeta", args.zeta)):
+            if given is not None:
+                raise JointCtlError("give either --bandwidth-hz (and --zeta) or --overshoot-pct and --settling-s",
+                                    field=flag, value=given)
+        for flag, given in (("--overshoot-pct", args.overshoot_pct), ("--settling-s", args.settling_s)):
+            if given is None:
+                raise JointCtlError("is required with " + ("--settling-s" if flag == "--overshoot-pct" else
+                                                           "--overshoot-pct"), field=flag)
+        zeta, bandwidth_hz = spec_from_step(args.overshoot_pct, args.settling_s)
+        return zeta, bandwidth_hz, args.settling_s
+    if args.bandwidth_hz is None:
+        raise JointCtlError("is required (or --overshoot-pct and --settling-s)", field="--bandwidth-hz")
+    return (0.7 if args.zeta is None else args.zeta), args.bandwidth_hz, None
+
+
+def _autotune(args: argparse.Namespace) -> int:
+    from jointctl.identification.autotune import autotune
+
+    if args.hardware == "industrial":
+        raise JointCtlError("an industrial controller servos its joints with gains of its own, which simple_message "
+                            "cannot read or set: there is nothing of jointctl's to tune", field="--hardware",
+                            value="industrial")
+    zeta, bandwidth_hz, settling_s = _autotune_spec(args)
+    plant = _plant_file(args.plant)
+    if args.hardware == "ros":
+        from jointctl.identification.autotune import autotune_servoed
+
+        with _served(args, controller=args.controller) as (session, name):
+            result = autotune_servoed(session, name, bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step,
+                                      plant=plant, out_dir=args.out, settling_s=settling_s)
+    else:
+        result = autotune(lambda overrides: _loop_scenario(args, overrides), args.controller,
+                          bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step, plant=plant, out_dir=args.out,
+                          settling_s=settling_s)
+    print(json.dumps(result, indent=2, default=float))
+    print(f"wrote {result['yaml']}", file=sys.stderr)
+    return 0
+
+
+def _joint_type(robot: str | None, joint: str) -> str:
+    """The type of ``joint`` of built-in ``robot`` (for identifying from a trace)."""
+    from jointctl.model.loader import load_robot_model
+    from jointctl.scenario.spec import builtin_robots, read_robot_manifest
+
+    if robot is None:
+        raise JointCtlError("a trace needs --joint-type or --robot (to read the joint's type)", field="--joint-type")
+    robots = builtin_robots()
+    if robot not in robots:
+        raise JointCtlError(f"no such built-in robot (built-in: {', '.join(robots)})", field="--robot", value=robot)
+    model = load_robot_model(read_robot_manifest(robots[robot] / "robot.yaml").description)
+    if not model.has_joint(joint):
+        raise JointCtlError(f"no such joint on {robot}", field="--joint", value=joint)
+    return model.joint(joint).type

@@ -1,0 +1,87 @@
+"""What several command families share: a robot or scenario run on the wall clock, and how to reach a
+robot controller over simple_message."""
+
+from __future__ import annotations
+
+import argparse
+
+from jointctl.errors import JointCtlError
+
+
+def positive_speed(args: argparse.Namespace) -> None:
+    """``--speed`` is loop time per wall-clock time: refuse zero, negatives and NaN."""
+    if not args.speed > 0:
+        raise JointCtlError("must be positive", field="--speed", value=args.speed)
+
+
+def ros_edge(module: str):
+    """``jointctl.ros.<module>``, or one line saying ROS 1 is missing."""
+    import importlib
+
+    try:
+        return importlib.import_module(f"jointctl.ros.{module}")
+    except ImportError as exc:
+        raise JointCtlError(f"ROS 1 is not available ({exc}); install it with 'make ros'") from None
+
+
+def loop_hardware_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where identify, bode and autotune find the joint's loop."""
+    parser.add_argument("--hardware", choices=("sim", "ros", "industrial"), default="sim",
+                        help="sim: the robot in MuJoCo, in simulated time (default); ros: the robot a node serves "
+                             "on the ROS graph (jointctl serve), through its topics and dynamic_reconfigure, in "
+                             "real time; industrial: an industrial controller over simple_message (bode only: "
+                             "its own servo loop, streamed positions)")
+    parser.add_argument("--namespace", help="with --hardware ros: the served robot's namespace (default: the "
+                                            "robot's controller file's, e.g. one_DOF_robot)")
+    industrial_arguments(parser)
+
+
+def industrial_arguments(parser: argparse.ArgumentParser) -> None:
+    """How to reach an industrial controller (serve and bode with --hardware industrial)."""
+    parser.add_argument("--robot-ip", help="with --hardware industrial: the robot controller's host name or IPv4 address")
+    parser.add_argument("--motion-port", type=int, default=11000, help="the controller's motion port (default 11000)")
+    parser.add_argument("--state-port", type=int, default=11002, help="the controller's state port (default 11002)")
+    parser.add_argument("--big-endian", action="store_true", help="the controller speaks big-endian (the _bswap drivers)")
+    parser.add_argument("--stream-rate-hz", type=float, default=50.0,
+                        help="points streamed to the controller per second (default 50)")
+    parser.add_argument("--motion", choices=("streaming", "download"), default="streaming",
+                        help="the controller's motion handshake: points streamed as a goal runs (default), or "
+                             "each goal downloaded whole and executed after its last point")
+
+
+def live_target_arguments(parser: argparse.ArgumentParser) -> None:
+    """What serve and tune share: a robot and its controller file, or a scenario, run on the wall clock."""
+    parser.add_argument("target", help="a built-in robot (with --controllers) or a scenario YAML / name")
+    parser.add_argument("--controllers", default=None,
+                        help="with a robot: which of its controller files to load and start (default position)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a scenario field (repeatable)")
+    parser.add_argument("--speed", type=float, default=1.0, help="loop time per wall-clock time (default 1.0)")
+
+
+def live_scenario(args: argparse.Namespace):
+    """The scenario of ``serve``/``tune``: a built-in robot with a controller file, or a scenario."""
+    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
+
+    positive_speed(args)
+    if args.target in builtin_robots():
+        default = ("servo" if args.command == "controller"
+                   else "industrial" if getattr(args, "hardware", "sim") == "industrial" else "position")
+        return scenario_for_robot(args.target, args.controllers or default, args.overrides)
+    return load_scenario(args.target, args.overrides)
+
+
+def industrial_hardware(args: argparse.Namespace, scenario):
+    """The robot controller behind ``serve --hardware industrial``, connected (or a clear error)."""
+    from jointctl.hardware.industrial import IndustrialHardware
+    from jointctl.model.loader import load_robot_model
+
+    if not args.robot_ip:
+        raise JointCtlError("is required with --hardware industrial", field="--robot-ip")
+    robot = load_robot_model(scenario.robot.description)
+    hardware = IndustrialHardware([j.name for j in robot.movable_joints], robot_ip=args.robot_ip,
+                                  motion_port=args.motion_port, state_port=args.state_port,
+                                  big_endian=args.big_endian, stream_rate_hz=args.stream_rate_hz,
+                                  motion=args.motion)
+    hardware.connect()
+    return hardware

@@ -1,2 +1,0 @@
-"""ROS-Industrial's simple_message: the codec, a simulated industrial controller, and the hardware
-that drives one."""

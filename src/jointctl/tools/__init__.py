@@ -1,1 +1,0 @@
-"""Tools around the control loop: safe command expressions and command signal sources."""
