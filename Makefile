@@ -47,8 +47,12 @@ browser:
 render:
 	bash scripts/install_render.sh
 
+# Tests run on $(JOBS) workers: the wall-clock ones (ROS, sockets, browser) together on one, the
+# simulated-time ones spread over the others (tests/conftest.py); the 30 slowest are listed at the end.
+JOBS ?= $(shell nproc)
+
 test: ros browser render
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(JOBS) --dist loadgroup --durations=30
 
 bench: venv render
 	$(PY) benchmarks/run.py

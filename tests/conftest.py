@@ -40,3 +40,29 @@ def write_scenario(tmp_path: Path):
         return path
 
     return write
+
+
+# -- running in parallel (pytest-xdist) -------------------------------------------------------------------
+#: Tests that run on the wall clock (ROS graphs, sockets to a controller, the page in a browser, the
+#: viewer's window, pacing): with ``-n 2 --dist loadgroup`` they all run on one worker, one after the
+#: other, while the other worker runs the simulated-time tests, whose results do not depend on how
+#: fast they run. A wall-clock test therefore never shares the machine with another wall-clock test.
+WALL_CLOCK_TESTS = (
+    "tests/ros/",
+    "tests/hardware/test_industrial.py",
+    "tests/industrial_controller/test_controller.py",
+    "tests/industrial_controller/test_bode_over_bridge.py",
+    "tests/tuning/test_page.py",
+    "tests/tuning/test_server.py",
+    "tests/tuning/test_analyses.py",
+    "tests/visuals/test_viewer.py",
+    "tests/runtime/test_clock.py",
+)
+_ROOT = Path(__file__).resolve().parents[1]
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        path = Path(str(item.fspath)).resolve().relative_to(_ROOT).as_posix()
+        if path.startswith(WALL_CLOCK_TESTS):
+            item.add_marker(pytest.mark.xdist_group("wall_clock"))
