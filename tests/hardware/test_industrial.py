@@ -4,9 +4,11 @@ real robot in MuJoCo behind the same protocol, is tested with it in tests/indust
 
 from __future__ import annotations
 
+import math
 import socket
 import threading
 import time
+from collections import deque
 
 import pytest
 
@@ -37,17 +39,43 @@ def wait_for(condition, what: str) -> None:
 
 
 class Peer:
-    """A controller double: state pushed every ``period_s`` from ``positions``; motion requests
-    recorded and answered SUCCESS (or held while ``hold`` is set)."""
+    """A controller double built from ROS-I's reference behaviour of a robot controller (facts §7-§10),
+    on loopback, in either byte order:
+
+    - the STATE port pushes JOINT_POSITION (the measured positions) and STATUS (TOPIC) every
+      ``period_s`` while ``publishing`` is set; STATUS ``in_motion`` is truthful (1 while points are
+      queued, a segment runs or the joints settle) unless the test forces ``in_motion``;
+    - the MOTION port takes JOINT_TRAJ_PT requests: sequence 0 starts a new trajectory (the queue is
+      forgotten), each point is queued and answered SUCCESS with its body echoed, the reply held
+      while ``capacity`` points wait (and while ``hold`` is set); STOP (-4) clears the queue, the
+      joints come to rest where they are, and is answered; points of a stopped trajectory (sequence
+      > 0) are answered FAILURE until a new one begins;
+    - motion of its own: the reference goes from where it is to each point over the point's
+      ``duration`` (linear, as ``industrial_robot_simulator`` interpolates), on the double's clock,
+      and the measured joints follow the reference through a first-order servo lag ``lag_s``.
+
+    Every point received is kept in ``points`` and, with the index of the motion connection it came
+    on, in ``received``; every state report sent is kept in ``reports`` as (time.time(), positions,
+    in_motion)."""
+
+    SETTLED = 1e-6  # |measured - reference| below which a joint has settled [rad or m]
 
     def __init__(self, big_endian: bool = False, period_s: float = 0.01, positions=(0.1, -0.2),
-                 follow: bool = False) -> None:
+                 capacity: int = 8, lag_s: float = 0.05) -> None:
         self.big_endian, self.period_s = big_endian, period_s
-        self.positions = list(positions)
-        self.follow = follow  # jump to each point received (an ideal servo)
+        self.capacity, self.lag_s = capacity, lag_s
+        self.positions = list(positions)       # measured
+        self._reference = list(positions)      # the interpolator's output
         self.step_per_report = 0.0  # added to the first joint after each JOINT_POSITION sent
-        self.in_motion = 0
+        self.in_motion: int | None = None  # None: truthful; else reported as it is
         self.points: list[JointTrajPt] = []
+        self.received: list[tuple[int, JointTrajPt]] = []
+        self.reports: list[tuple[float, tuple[float, ...], int]] = []
+        self._queue: deque = deque()           # (target, duration) waiting
+        self._segment = None                   # (start, target, duration, elapsed)
+        self._accepting = True
+        self._clock = time.monotonic()
+        self.lock = threading.Condition()
         self.hold = threading.Event()
         self.publishing = threading.Event()
         self.publishing.set()
@@ -61,6 +89,49 @@ class Peer:
         for thread in self.threads:
             thread.start()
 
+    # -- the double's own motion (under self.lock) --------------------------------------------------
+    def _advance(self) -> None:
+        now = time.monotonic()
+        dt, self._clock = now - self._clock, now
+        left = dt
+        while left > 0:
+            if self._segment is None:
+                if not self._queue:
+                    break
+                target, duration = self._queue.popleft()
+                self._segment = [list(self._reference), target, duration, 0.0]
+            start, target, duration, elapsed = self._segment
+            take = min(left, duration - elapsed)
+            elapsed += take
+            left -= take
+            s = 1.0 if elapsed >= duration else elapsed / duration
+            self._reference = [a + (b - a) * s for a, b in zip(start, target)]
+            self._segment[3] = elapsed
+            if s >= 1.0:
+                self._segment = None
+        decay = math.exp(-dt / self.lag_s) if self.lag_s > 0 else 0.0
+        self.positions = [r + (q - r) * decay if abs(q - r) > self.SETTLED else r
+                          for q, r in zip(self.positions, self._reference)]
+        self.lock.notify_all()
+
+    @property
+    def moving(self) -> bool:
+        """The truthful in_motion: points queued, a segment running, or a joint not yet settled."""
+        with self.lock:
+            return bool(self._queue) or self._segment is not None or self.positions != self._reference
+
+    def place(self, positions) -> None:
+        """Put the joints at ``positions`` at rest (the robot moved by hand, say)."""
+        with self.lock:
+            self.positions, self._reference = list(positions), list(positions)
+
+    def _stop(self) -> None:
+        self._queue.clear()
+        self._segment = None
+        self._reference = list(self.positions)  # the joints come to rest where they are
+        self._accepting = False
+
+    # -- the sockets ----------------------------------------------------------------------------------
     def _accept(self, server: socket.socket) -> socket.socket | None:
         while not self.closing.is_set():
             try:
@@ -78,17 +149,26 @@ class Peer:
         while (conn := self._accept(self.servers[1])) is not None:
             try:
                 while not self.closing.is_set():
+                    with self.lock:
+                        self._advance()
+                        positions = tuple(self.positions)
                     if self.publishing.is_set():
-                        conn.sendall(encode(JointPosition(0, tuple(self.positions)), big_endian=self.big_endian))
-                        self.positions[0] += self.step_per_report
-                        conn.sendall(encode(RobotStatus(1, 0, 0, 0, self.in_motion, 2, 1), big_endian=self.big_endian))
-                    time.sleep(self.period_s)
+                        in_motion = int(self.moving) if self.in_motion is None else self.in_motion
+                        conn.sendall(encode(JointPosition(0, positions), big_endian=self.big_endian)
+                                     + encode(RobotStatus(1, 0, 0, 0, in_motion, 2, 1), big_endian=self.big_endian))
+                        self.reports.append((time.time(), positions, in_motion))
+                        if self.step_per_report:
+                            with self.lock:
+                                self.positions[0] += self.step_per_report
+                                self._reference[0] = self.positions[0]
+                    self.closing.wait(self.period_s)
             except OSError:
                 continue
 
     def _motion(self) -> None:
         while (conn := self._accept(self.servers[0])) is not None:
             self.motion_connections.append(conn)
+            index = len(self.motion_connections) - 1
             reader = PacketReader(big_endian=self.big_endian)
             try:
                 while not self.closing.is_set():
@@ -99,23 +179,43 @@ class Peer:
                         assert packet.comm_type == CommType.SERVICE_REQUEST
                         point = decode(packet, big_endian=self.big_endian)
                         self.points.append(point)
-                        if self.follow and point.sequence >= 0:
-                            self.positions = list(point.positions[: len(self.positions)])
+                        self.received.append((index, point))
+                        code = self._on_point(point)
                         while self.hold.is_set() and not self.closing.is_set():
                             time.sleep(0.005)
-                        conn.sendall(encode_reply(packet, ReplyCode.SUCCESS, big_endian=self.big_endian))
+                        conn.sendall(encode_reply(packet, code, big_endian=self.big_endian))
             except OSError:
                 continue
+            with self.lock:
+                self._stop()  # a client gone mid-motion: the robot stops
+
+    def _on_point(self, point: JointTrajPt) -> ReplyCode:
+        n = len(self.positions)
+        with self.lock:
+            self._advance()
+            if point.sequence == STOP_TRAJECTORY:
+                self._stop()
+                return ReplyCode.SUCCESS
+            if point.sequence == 0:
+                self._queue.clear()
+                self._segment = None  # the new trajectory goes on from where the reference is
+                self._accepting = True
+            elif not self._accepting:
+                return ReplyCode.FAILURE
+            while len(self._queue) >= self.capacity and not self.closing.is_set():
+                self.lock.wait(self.period_s)  # flow control: the reply waits for room
+                self._advance()
+            self._queue.append((list(point.positions[:n]), point.duration))
+            return ReplyCode.SUCCESS
 
     def drop_motion(self) -> None:
         """Close the motion connection only (the state goes on)."""
         for conn in self.motion_connections:
-            conn.shutdown(socket.SHUT_RDWR)  # a FIN now: close() alone waits for the thread blocked in recv
-            conn.close()
+            _shut(conn)
 
     def drop_connections(self) -> None:
         for conn in self.connections:
-            conn.close()
+            _shut(conn)
         self.connections.clear()
 
     def close(self) -> None:
@@ -125,11 +225,23 @@ class Peer:
             server.close()
         for thread in self.threads:
             thread.join(2.0)
+            assert not thread.is_alive(), "the double's thread did not end"
 
 
-@pytest.fixture(params=[False, True], ids=["little-endian", "big-endian"])
-def peer(request):
-    p = Peer(big_endian=request.param)
+def _shut(conn: socket.socket) -> None:
+    """Close ``conn`` with a FIN now: close() alone sends none while another thread blocks in recv on it."""
+    try:
+        conn.shutdown(socket.SHUT_RDWR)
+    except OSError:
+        pass
+    conn.close()
+
+
+@pytest.fixture
+def peer():
+    # Little-endian only: the byte order is covered by the codec tests and, over a socket, by
+    # tests/industrial/test_controller.py's streaming handshake in both orders.
+    p = Peer()
     yield p
     p.close()
 
@@ -157,10 +269,13 @@ def test_state_is_read_as_reported_and_the_command_starts_there(peer) -> None:
         assert hw.fault is None
         wait_for(lambda: hw.status is not None, "the first STATUS")  # it follows the first JOINT_POSITION
         assert hw.status.mode == 2 and hw.status.in_motion == 0
-        peer.positions = [0.3, -0.2]
+        peer.place([0.3, -0.2])
         wait_for(lambda: (hw.read(), hw.position[0])[1] == pytest.approx(0.3, abs=1e-7), "the new state")
         cycle(hw, 20)
-        assert peer.points == []  # an unchanged command sends nothing
+        hw.command_buffer(POSITION)[:] = [0.3, -0.25]  # a changed command: sent, after anything the unchanged one sent
+        cycle(hw, 20)
+        wait_for(lambda: len(peer.points) >= 1, "the changed command")
+        assert [p.positions[:2] for p in peer.points] == [pytest.approx((0.3, -0.25), abs=1e-7)]
     finally:
         hw.close()
 
@@ -179,7 +294,7 @@ def test_a_motion_streams_points_at_the_stream_rate_from_sequence_zero(peer) -> 
         assert [p.positions[0] for p in peer.points] == pytest.approx([0.1 + 0.001 * k for k in (0, 20, 40, 60, 80)],
                                                                        abs=1e-6)
         assert all(p.positions[2:] == (0.0,) * 8 for p in peer.points)  # padded to ten joints
-        assert hw.replies == 5
+        wait_for(lambda: hw.replies == 5, "the five replies")
     finally:
         hw.close()
 
@@ -214,11 +329,31 @@ def test_flow_control_holds_the_next_point_until_the_reply(peer) -> None:
             command[0] = 0.1 + 0.001 * k
             cycle(hw)
         wait_for(lambda: len(peer.points) == 1, "the first point")
-        time.sleep(0.1)  # (a bound on a hang, not a speed): nothing else is sent while the reply is held
+        # The four later points exist and wait in the hardware's outbox behind the held reply (the
+        # positive evidence that they would have been sent, had the sender not waited).
+        wait_for(lambda: hw._outbox.qsize() == 4, "the four later points queued behind the held reply")
         assert len(peer.points) == 1 and hw.replies == 0
         peer.hold.clear()
         wait_for(lambda: len(peer.points) == 5, "the held points")
         assert [p.sequence for p in peer.points] == [0, 1, 2, 3, 4]
+    finally:
+        hw.close()
+
+
+def test_the_controllers_full_buffer_holds_the_stream_back(peer) -> None:
+    # A controller with room for 8 waiting points, each taking 10 s: the first runs, 8 wait, the
+    # reply to the 10th is held, and the hardware's sender waits for it: the rest wait at the PC.
+    hw = connected(peer, stream_rate_hz=0.1)
+    try:
+        command = hw.command_buffer(POSITION)
+        for k in range(20):  # 200 s of loop time: 20 points, one every 10 s, each 1 mm further
+            command[0] = 0.1 + 0.001 * (k + 1)
+            cycle(hw, 1000, period_s=0.01)
+        held = peer.capacity + 2
+        wait_for(lambda: len(peer.points) == held and hw._outbox.qsize() == 20 - held,
+                 "the buffer full, a reply held and the rest waiting at the PC")
+        assert hw.replies == held - 1 and peer.moving
+        wait_for(lambda: (hw.read(), hw.in_motion)[1] is True, "STATUS in_motion 1 from the moving controller")
     finally:
         hw.close()
 
@@ -231,32 +366,46 @@ def test_stale_state_is_a_fault_until_state_flows_again(peer) -> None:
         peer.publishing.clear()
         wait_for(lambda: (hw.read(), hw.fault)[1] is not None, "the stale fault")
         assert "no joint state from 127.0.0.1" in hw.fault
-        hw.command_buffer(POSITION)[0] = 0.5
+        command = hw.command_buffer(POSITION)
+        command[0] = 0.5  # must not be sent while faulted
         cycle(hw, 40)
-        assert peer.points == []  # nothing is sent while the hardware is faulted
+        command[0] = 0.1  # back where it was: nothing to send once the state flows again
         peer.publishing.set()
-        wait_for(lambda: (hw.read(), hw.fault)[1] is None, "the state again")
+        wait_for(lambda: (cycle(hw), hw.fault)[1] is None, "the state again")
+        command[0] = 0.6
+        cycle(hw, 40)
+        wait_for(lambda: len(peer.points) >= 1 and peer.points[-1].positions[0] == pytest.approx(0.6),
+                 "the command given once the state flows")
+        # One sender, one connection: anything sent while faulted would have arrived before the 0.6.
+        assert [p.positions[0] for p in peer.points] == [pytest.approx(0.6)]
     finally:
         hw.close()
 
 
 def test_a_lost_motion_connection_is_a_fault_and_is_reopened(peer) -> None:
-    hw = connected(peer, retry_s=0.05)
+    # The fault lasts at least retry_s (the hardware waits that long before it reopens): 0.5 s is
+    # 100 of wait_for's polls.
+    hw = connected(peer, retry_s=0.5)
     try:
         command = hw.command_buffer(POSITION)
         command[0] = 0.2
         cycle(hw, 25)
-        wait_for(lambda: len(peer.points) == 1, "the first point")
-        peer.drop_connections()
+        wait_for(lambda: hw.replies == 1, "the first point answered on the first connection")
+        assert [c for c, _ in peer.received] == [0]
+        peer.drop_connections()  # a FIN to the hardware on both connections
         command[0] = 0.3
-        for _ in range(200):
-            cycle(hw)
-            if hw.fault is not None and "motion connection" in hw.fault:
-                break
-            time.sleep(0.002)
-        assert hw.fault is not None and "lost the motion connection to 127.0.0.1" in hw.fault
+        cycle(hw, 25)  # a point for the dead connection: its failure is the fault
+        wait_for(lambda: (hw.read(), hw.fault)[1] is not None and "motion connection" in hw.fault,
+                 "the lost motion connection as a fault")
+        assert "lost the motion connection to 127.0.0.1" in hw.fault
+        wait_for(lambda: len(peer.motion_connections) == 2, "the motion connection reopened")
+        wait_for(lambda: (cycle(hw), hw.fault)[1] is None, "no fault once reopened")
         command[0] = 0.35
-        wait_for(lambda: (cycle(hw, 20), hw.fault)[1] is None and len(peer.points) >= 2, "reconnected and sent")
+        cycle(hw, 25)
+        wait_for(lambda: any(c == 1 for c, _ in peer.received), "a point on the new connection")
+        on_new = [p for c, p in peer.received if c == 1]
+        assert on_new[0].sequence == 0 and on_new[0].positions[0] == pytest.approx(0.35)  # a new trajectory
+        wait_for(lambda: hw.replies == 1 + len(on_new), "its reply, over the new connection")
     finally:
         hw.close()
 
@@ -273,7 +422,8 @@ def test_a_motion_connection_closed_while_idle_is_reopened_before_the_next_motio
         wait_for(lambda: (cycle(hw), hw.fault)[1] is None, "no fault once reopened")
         hw.command_buffer(POSITION)[0] = 0.2
         cycle(hw, 25)
-        wait_for(lambda: len(peer.points) == 1, "the first point, on the new connection")
+        wait_for(lambda: len(peer.points) == 1, "the first point")
+        assert peer.received[0][0] == 1  # on the new connection
         cycle(hw)
         assert peer.points[0].sequence == 0 and hw.fault is None
     finally:
@@ -281,12 +431,13 @@ def test_a_motion_connection_closed_while_idle_is_reopened_before_the_next_motio
 
 
 def test_an_unreachable_controller_is_a_clear_error() -> None:
-    with socket.create_server(("127.0.0.1", 0)) as probe:
-        free_port = probe.getsockname()[1]  # closed when the block ends: nobody listens there
-    hw = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=free_port, state_port=free_port)
-    with pytest.raises(HardwareUnreachable, match="no industrial controller answers on its state port") as info:
-        hw.connect()
-    assert info.value.field == "robot_ip" and info.value.value == f"127.0.0.1:{free_port}"
+    with socket.socket() as bound:  # bound, not listening, and kept: nobody listens on its port
+        bound.bind(("127.0.0.1", 0))
+        port = bound.getsockname()[1]
+        hw = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=port, state_port=port)
+        with pytest.raises(HardwareUnreachable, match="no industrial controller answers on its state port") as info:
+            hw.connect()
+    assert info.value.field == "robot_ip" and info.value.value == f"127.0.0.1:{port}"
 
 
 def test_bad_settings_are_refused_naming_the_field() -> None:

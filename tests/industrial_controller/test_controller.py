@@ -43,10 +43,11 @@ def wait_for(condition, what: str, timeout_s: float = TIMEOUT_S) -> None:
         time.sleep(0.005)
 
 
-@pytest.fixture(params=[False, True], ids=["little-endian", "big-endian"])
+@pytest.fixture
 def controller(request):
+    """The controller on free ports the OS picks; little-endian unless parametrised (indirect) with True."""
     ctl = SimulatedController(scenario_for_robot("one_dof", "servo"), host="127.0.0.1",
-                              motion_port=0, state_port=0, big_endian=request.param)
+                              motion_port=0, state_port=0, big_endian=getattr(request, "param", False))
     thread = threading.Thread(target=ctl.run, daemon=True)
     thread.start()
     yield ctl
@@ -57,6 +58,12 @@ def controller(request):
 
 def joint1(ctl: SimulatedController) -> float:
     return ctl.session.hardware.position[0]
+
+
+def let_loop_time_pass(ctl: SimulatedController, seconds: float) -> None:
+    """Wait until the controller's loop has run ``seconds`` more of its own time."""
+    until = ctl.session.loop.time_s + seconds
+    wait_for(lambda: ctl.session.loop.time_s >= until, f"{seconds} s more of the controller's loop time")
 
 
 class RawClient:
@@ -112,6 +119,9 @@ def test_state_reports_the_measured_position_and_a_truthful_status(controller) -
         (0, 0, 1, 1, 2)
 
 
+# The one socket-level test in both byte orders (the codec tests cover the rest): jointctl's client
+# and the controller, both channels.
+@pytest.mark.parametrize("controller", [False, True], ids=["little-endian", "big-endian"], indirect=True)
 def test_jointctl_drives_it_through_the_streaming_handshake(controller) -> None:
     hw = IndustrialHardware(["joint1"], robot_ip="127.0.0.1", motion_port=controller.motion_port,
                             state_port=controller.state_port, big_endian=controller.big_endian)
@@ -139,8 +149,10 @@ def test_the_download_handshake_runs_only_after_its_end(controller) -> None:
     client = RawClient(controller)
     for seq, q, d in ((START_TRAJECTORY_DOWNLOAD, START_M, 0.0), (1, -0.4, 0.5)):
         client.send(point(seq, q, d), CommType.TOPIC)
-    time.sleep(0.3)
-    assert joint1(controller) == pytest.approx(START_M, abs=1e-3) and not controller.program.in_motion
+    # The PING's reply comes after the two topics were handled (one connection, handled in order).
+    assert client.request(Ping()).reply_code == ReplyCode.SUCCESS
+    assert not controller.program.in_motion  # kept, not executed: nothing queued to move to
+    assert joint1(controller) == pytest.approx(START_M, abs=1e-3)
     client.send(point(END_TRAJECTORY, -0.3, 0.5), CommType.TOPIC)
     wait_for(lambda: controller.program.in_motion, "the download to start")
     wait_for(lambda: not controller.program.in_motion, "the download to end")
@@ -151,13 +163,15 @@ def test_the_download_handshake_runs_only_after_its_end(controller) -> None:
 def test_stop_is_answered_and_the_robot_comes_to_rest_short_of_the_point(controller) -> None:
     client = RawClient(controller)
     assert client.request(point(0, START_M)).reply_code == ReplyCode.SUCCESS
-    assert client.request(point(1, -0.05, 9.0)).reply_code == ReplyCode.SUCCESS  # 0.05 m/s for 9 s
+    assert client.request(point(1, -0.05, 4.5)).reply_code == ReplyCode.SUCCESS  # 0.1 m/s for 4.5 s
     wait_for(lambda: joint1(controller) > START_M + 0.05, "the robot moving")
     reply = client.request(point(STOP_TRAJECTORY, 0.0))
     assert (reply.msg_type, reply.reply_code) == (MsgType.JOINT_TRAJ_PT, ReplyCode.SUCCESS)
     wait_for(lambda: not controller.program.in_motion, "the stop")
     stopped_at = joint1(controller)
-    time.sleep(0.5)
+    let_loop_time_pass(controller, 0.5)
+    # At rest: the references stand still and the servo has only its settling tail left (a robot
+    # that went on at the point's 0.1 m/s would be 50 mm further).
     assert joint1(controller) == pytest.approx(stopped_at, abs=2e-3) and stopped_at < -0.1
     client.close()
 
@@ -176,7 +190,7 @@ def test_a_refused_point_moves_nothing_and_shows_in_status(controller) -> None:
     assert client.request(point(1, float("nan"), 1.0)).reply_code == ReplyCode.FAILURE
     assert client.request(point(0, START_M)).reply_code == ReplyCode.SUCCESS  # delivered: a new trajectory
     assert client.request(point(1, 5.0, 1.0)).reply_code == ReplyCode.FAILURE  # beyond the upper limit
-    time.sleep(0.3)
+    assert not controller.program.in_motion  # nothing queued: the robot has nothing to move to
     assert joint1(controller) == pytest.approx(START_M, abs=1e-3)
     status = controller.program.status()
     assert status.in_error == 1 and status.error_code == 1
@@ -209,7 +223,7 @@ def test_garbage_closes_only_that_connection_and_the_next_client_is_served(contr
 def test_a_client_lost_mid_trajectory_brakes_the_robot_and_can_come_back(controller) -> None:
     client = RawClient(controller)
     client.request(point(0, START_M))
-    client.request(point(1, -0.05, 9.0))
+    client.request(point(1, -0.05, 4.5))  # 0.1 m/s
     wait_for(lambda: joint1(controller) > START_M + 0.05, "the robot moving")
     client.close()
     wait_for(lambda: not controller.program.in_motion, "the robot braking to rest")
@@ -268,26 +282,33 @@ def test_a_refusal_reaches_jointctl_as_a_fault_once_and_the_next_motion_clears_i
 
 
 def test_stop_motion_is_a_fault_until_the_controller_reports_the_robot_at_rest(controller) -> None:
+    # One streamed point to -0.1 m taking 4 s (the stream period is the point's duration): 0.1 m/s,
+    # so the robot is still on its way, 0.35 m short, when the STOP goes out after it passed -0.45 m.
     hw = IndustrialHardware(["joint1"], robot_ip="127.0.0.1", motion_port=controller.motion_port,
-                            state_port=controller.state_port, big_endian=controller.big_endian)
+                            state_port=controller.state_port, stream_rate_hz=1 / 4.0)
     hw.connect()
     try:
-        for k in range(1, 400):  # toward -0.1 m at 0.5 m/s
-            hw.command_buffer(POSITION)[0] = START_M + 0.5 * k / 1000
-            hw.advance(0.001)
-            hw.write()
-            time.sleep(0.001)
-        hw.read()
-        assert hw.fault is None and hw.status.in_motion == 1
+        hw.command_buffer(POSITION)[0] = -0.1
+        hw.write()
+        wait_for(lambda: (hw.read(), hw.position[0] > START_M + 0.05 and hw.status.in_motion == 1)[1],
+                 "the robot moving toward -0.1 m")
+        assert hw.fault is None
         hw.stop_motion()
         hw.read()
         assert hw.fault == "stopping: STOP sent, until the controller reports the robot at rest"
         wait_for(lambda: (hw.read(), hw.fault is None)[1], "the stop to end")
-        assert hw.status.in_motion == 0
-        time.sleep(0.3)
+        assert hw.status.in_motion == 0 and controller.program.accepted == 1
+        stopped_at = hw.position[0]
+        # Short of -0.1 m by far more than the braking distance at 0.1 m/s (v * stop_time_s / 2 =
+        # 10 mm): -0.2 m leaves 2.5 s of travel for the STOP's way from the test to the controller.
+        assert START_M + 0.05 < stopped_at < -0.2
+        reports = hw.state_reports
+        wait_for(lambda: hw.state_reports >= reports + 25, "0.5 s more of state reports (50 Hz)")
         hw.read()
-        assert joint1(controller) == pytest.approx(hw.position[0], abs=2e-3)
-        assert hw.position[0] < -0.2  # stopped short of -0.1 m
+        # Still: STATUS said every joint slower than moving_threshold (1 mm/s) with its reference at
+        # rest; 0.5 s of that is under 0.5 mm, and a robot still going at 0.1 m/s would be 50 mm on.
+        assert hw.position[0] == pytest.approx(stopped_at, abs=1e-3)
+        assert joint1(controller) == pytest.approx(stopped_at, abs=1e-3)
     finally:
         hw.close()
 
