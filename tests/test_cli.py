@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import socket
 import struct
 import subprocess
@@ -110,18 +111,47 @@ def test_missing_and_malformed_files(tmp_path, write_scenario):
     assert_one_line_error(jointctl("run", scenario), "bad.xacro", "xacro failed")
 
 
-def test_demo_writes_a_report_with_every_experiment(tmp_path):
-    result = jointctl("demo", "--out", tmp_path / "demo")
-    assert result.returncode == 0, result.stderr
+#: The built-in experiments (scenarios with an analysis); arm7dof_streamer is a robot to drive.
+EXPERIMENTS = ("arm7dof_nac_catch", "arm7dof_pose", "minimal_robot_trajectory", "one_dof_drop_weight",
+               "one_dof_nac_drop", "one_dof_sine", "one_dof_step", "one_dof_trajectory", "one_dof_velocity_sine")
+
+
+def test_demo_runs_every_experiment_with_a_video_and_reports_each(tmp_path, monkeypatch):
+    # In-process, with the runs stubbed: which scenarios `jointctl demo` runs, and how. Each experiment
+    # is run for real by its own test (tests/scenario), the report of real runs by the next test.
+    import jointctl.scenario.run as run_module
+    from jointctl.cli import main
+
+    ran = []
+
+    def run_scenario(scenario, out, *, video=None, **kwargs):
+        ran.append((scenario.name, video))
+        return {"scenario": scenario.name, "a_metric": 1.5, "expected": {"a_metric": 1.5}}
+
+    monkeypatch.setattr(run_module, "run_scenario", run_scenario)
+    assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
+    assert sorted(name for name, _ in ran) == sorted(EXPERIMENTS)
+    assert all(video is run_module.DEMO_VIDEO for _, video in ran)  # a video of each experiment
     report = (tmp_path / "demo" / "report.md").read_text()
-    for name in ("one_dof_step", "one_dof_sine", "one_dof_velocity_sine"):
+    assert all(f"## {name}\n" in report for name in EXPERIMENTS)
+    assert "## arm7dof_streamer" not in report and report.count("| a_metric | 1.5 | 1.5 |") == len(EXPERIMENTS)
+
+
+def test_demo_report_of_two_experiments_links_their_figures_and_videos(tmp_path):
+    # Two representative experiments, run for real: both robots and their cameras, a spawned object
+    # (frames of two models in one video), metrics with and without expected values.
+    from jointctl.scenario.run import run_demo
+
+    experiments = {"one_dof_drop_weight": "position.png", "arm7dof_pose": "uncompensated_droop.png"}
+    report = run_demo(tmp_path / "demo", names=list(experiments)).read_text()
+    for name, figure in experiments.items():
         assert f"## {name}" in report
-        assert f"]({name}/position.png)" in report
-    assert "| natural_frequency_rad_s |" in report and "| expected |" in report
-    assert "## arm7dof_streamer" not in report  # a robot to drive, not an experiment
-    for name in ("one_dof_step", "one_dof_drop_weight", "one_dof_nac_drop", "arm7dof_pose", "arm7dof_nac_catch"):
-        assert f"![{name}: the run]({name}/video.gif)" in report  # a video of each experiment
+        assert f"]({name}/{figure})" in report
+        assert f"![{name}: the run]({name}/video.gif)" in report
         assert (tmp_path / "demo" / name / "video.gif").stat().st_size > 10_000
+    assert "| metric | measured | expected | difference |" in report
+    # (1 + 0.01 + 10) kg at 5 m/s² measured, the same expected beside it, and their difference
+    assert re.search(r"\| steady_effort_n \| 55\.0\d \| 55\.05 \| [+-]0\.\d\d % \|", report), report
 
 
 @pytest.mark.parametrize("args, fragments", [

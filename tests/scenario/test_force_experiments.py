@@ -48,6 +48,50 @@ def runs(tmp_path_factory):
                  for name in ("one_dof_drop_weight", "one_dof_nac_drop")}
 
 
+def continuous_decay_rate(state_age_s: float = 0.0, force_age_s: float = 0.0, stages: int = 20) -> float:
+    """Decay rate [1/s] of the slowest mode of the loaded NAC in continuous time, written here from the
+    model's numbers (independent of jointctl's sampled-loop theory), with the joint state (x, v) and the
+    sensed force reaching the admittance law ``state_age_s`` and ``force_age_s`` late.
+
+    Load riding on the piston, deviations from the loaded rest: m x'' = Kv (v_ref - v) - c v and
+    M v_ref' = -K x_late - B v_late + F_late with F = -load x''. A delay τ is a chain of ``stages``
+    first-order lags of τ/stages each (e^(-sτ) as stages grows; at 20 the rate is within 0.05 % of the
+    limit here). A signal sampled and held for T is, at the 1.6 Hz ringing, a delay of its mean age:
+    the hold's gain differs from 1 by (ωT)²/24 ≈ 0.2 % at T = 20 ms.
+    """
+    base = np.array([[0.0, 1.0, 0.0],
+                     [0.0, -(KV + JOINT_DAMPING) / MOVING, KV / MOVING],
+                     [0.0, 0.0, 0.0]])
+    signals = {"x": (np.eye(3)[0], state_age_s), "v": (np.eye(3)[1], state_age_s),
+               "force": (-LOAD * base[1], force_age_s)}
+    size = 3 + stages * sum(age > 0 for _, age in signals.values())
+    a, unit = np.zeros((size, size)), np.eye(size)
+    a[:3, :3] = base
+    seen, k = {}, 3
+    for name, (row, age) in signals.items():
+        out = np.concatenate([row, np.zeros(size - 3)])
+        if age > 0:
+            for _ in range(stages):
+                a[k] = (out - unit[k]) * stages / age  # y' = (u - y) / (age / stages)
+                out, k = unit[k], k + 1
+        seen[name] = out
+    a[2] = (-K_NAC * seen["x"] - B_NAC * seen["v"] + seen["force"]) / M_NAC
+    return -max(np.linalg.eigvals(a).real)
+
+
+#: The decay rates theory gives each run [1/s]. In the loop the sensor reports the previous step's
+#: acceleration (one 1 ms step late): 2.11/s. The book's node holds the joint states for 20 ms (ages
+#: 0..19 ms, 9.5 ms on average) and reads a 1 ms old force: 1.72/s. In rough terms: x 9.5 ms late is
+#: K·x - K·τ·v, taking K·τ = 9.5 N·s/m of the 50 N·s/m of damping (B/(2(M + load)) = 2.27/s unheld).
+THEORY_DECAY = {IN_LOOP: continuous_decay_rate(force_age_s=DT),
+                BOOK_NODE: continuous_decay_rate(state_age_s=(0.020 - DT) / 2, force_age_s=DT)}
+#: What a measured rate may differ from THEORY_DECAY by: the hold's gain (0.2 %), the chain's
+#: approximation of a delay (0.05 %), MuJoCo's 1 ms semi-implicit step on a 10 rad/s mode (second order
+#: in ω·dt: 0.01 %), the fit of ln|peak| over peaks sampled at 1 ms ((ω·dt)²/2 per peak: 0.005 %),
+#: summed with a margin of 2x.
+DECAY_REL = 0.01
+
+
 def test_drop_weight_settles_to_the_full_weight_not_seven_kilograms(runs):
     _, metrics = runs
     m = metrics["one_dof_drop_weight"]
@@ -82,19 +126,18 @@ def test_nac_rests_at_attractor_plus_force_over_stiffness(runs):
 
 # -- the linear theory itself -----------------------------------------------------------------
 def test_the_sampled_loop_theory_matches_the_continuous_model_when_nothing_is_held():
-    # Continuous time, load riding on the piston: m x'' = Kv (v_ref - v) - c v and
-    # M v_ref' = -K x - B v + F with F = -load x'' (deviations from rest). State (x, v, v_ref).
-    a = np.array([[0.0, 1.0, 0.0],
-                  [0.0, -(KV + JOINT_DAMPING) / MOVING, KV / MOVING],
-                  [0.0, 0.0, 0.0]])
-    a[2] = (np.array([-K_NAC, -B_NAC, 0.0]) - LOAD * a[1]) / M_NAC
-    continuous = -max(np.linalg.eigvals(a).real)
+    # Continuous time, nothing late (continuous_decay_rate).
+    continuous = continuous_decay_rate()
     # The load adds its inertia to the virtual mass: about ζ·ωn = B / (2 (M + load)) = 2.27/s.
     assert continuous == pytest.approx(B_NAC / (2 * (M_NAC + LOAD)), rel=0.1)
     # The cycle-by-cycle model converges to it as the step shrinks; at 1 ms it decays 2 % faster
     # (the sensor reports the previous step's acceleration), as the simulation does (next tests).
     assert nac_loaded_decay_rate(**{**THEORY, "period_s": 1e-5}) == pytest.approx(continuous, rel=0.001)
     assert nac_loaded_decay_rate(**THEORY) == pytest.approx(continuous, rel=0.03)
+    # Both runs' sampled-loop theories agree with the continuous model of what is late in them.
+    assert nac_loaded_decay_rate(**THEORY) == pytest.approx(THEORY_DECAY[IN_LOOP], rel=DECAY_REL)
+    assert nac_loaded_decay_rate(**THEORY, joint_state_every=20) == pytest.approx(THEORY_DECAY[BOOK_NODE],
+                                                                                   rel=DECAY_REL)
 
 
 def test_holding_the_force_not_the_joint_state_is_what_a_sample_and_hold_argument_destabilises():
@@ -126,8 +169,8 @@ def test_in_the_loop_and_as_the_book_node_it_settles_at_x_att_plus_f_over_k(runs
     _, metrics = runs
     m = metrics["one_dof_nac_drop"]
     expected = m["expected"]
-    decay = expected[f"{run}decay_rate_1_per_s"]
-    assert decay > 1.0  # theory: the loaded loop is stable (2.12/s in the loop, 1.72/s as the node)
+    decay = THEORY_DECAY[run]  # the loaded loop is stable: 2.11/s in the loop, 1.72/s as the node
+    assert expected[f"{run}decay_rate_1_per_s"] == pytest.approx(decay, rel=DECAY_REL)
     # Tolerance: f = 0 at rest whatever the sampling, so x_att + F/K is exact; what may remain
     # is the ringing. Theory bounds it: from a 0.1 m excursion, 5 s after the landing (the rest
     # window starts about 7 s after it) the ringing is below 0.1 m · exp(-decay · 5 s) < 30 µm.
@@ -148,14 +191,14 @@ def test_in_the_loop_and_as_the_book_node_it_settles_at_x_att_plus_f_over_k(runs
 def test_the_ringing_decays_at_the_rate_of_the_sampled_loop_theory(runs, run):
     _, metrics = runs
     m = metrics["one_dof_nac_drop"]
-    assert m[f"{run}decay_rate_1_per_s"] == pytest.approx(m["expected"][f"{run}decay_rate_1_per_s"], rel=0.05)
+    assert m[f"{run}decay_rate_1_per_s"] == pytest.approx(THEORY_DECAY[run], rel=DECAY_REL)
 
 
 def test_holding_joint_states_at_50hz_as_the_node_does_costs_damping_not_stability(runs):
     _, metrics = runs
     m = metrics["one_dof_nac_drop"]
     assert (m["book_node_joint_state_rate_hz"], m["book_node_force_rate_hz"]) == (50.0, 1000.0)
-    assert 0 < m["expected"]["book_node_decay_rate_1_per_s"] < m["expected"]["decay_rate_1_per_s"]
+    assert 0 < m["book_node_decay_rate_1_per_s"] < m["decay_rate_1_per_s"]
     assert m["settling_time_s"] < m["book_node_settling_time_s"]
 
 

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
 from jointctl.scenario.spec import scenario_for_robot
 from jointctl.tuning.analyses import live_copy, run_analysis
 from jointctl.tuning.requests import Analyse, RequestError, SetGain, SetGravity, parse_request
 from jointctl.tuning.tuner import Tuner
+from tests.tuning.conftest import wait_for
 
 CONTROLLER = "joint1_position_controller"
 
@@ -72,6 +71,34 @@ def running(tuner):
     assert runner.error is None
 
 
+def wait_until_stopped(tuner: Tuner) -> None:
+    """Wait until the loop has stopped: a change queued through the tuner's door is applied outside
+    any cycle, which only the paused runner does (a running loop applies it at a cycle's start)."""
+    in_cycle = False
+
+    def begin(t: float) -> None:
+        nonlocal in_cycle
+        in_cycle = True
+
+    def end(t: float) -> None:
+        nonlocal in_cycle
+        in_cycle = False
+
+    tuner.loop.add_input(begin, first=True)  # before the tuner's own input, which applies the changes
+    tuner.loop.add_observer(end)
+    try:
+        def applied_between_cycles() -> bool:
+            where: list[bool] = []
+            tuner.at_next_cycle(lambda t: where.append(in_cycle))
+            wait_for(lambda: where, what="the change to be applied")
+            return not where[0]
+
+        wait_for(applied_between_cycles, what="the loop to stop")
+    finally:
+        tuner.loop.remove_input(begin)
+        tuner.loop.remove_observer(end)
+
+
 def live(kind: str) -> Analyse:
     return parse_request(f'{{"type": "{kind}", "controller": "{CONTROLLER}", "live": true}}')
 
@@ -92,10 +119,7 @@ def test_a_live_identification_excites_the_running_robot_and_gives_its_reference
     assert result["damping_n_s_m"] == pytest.approx(10.0, rel=0.02)
     assert result["gravity_load_n"] == pytest.approx(1.01 * 9.81, rel=0.01)
     assert running.loop.inputs == hooks[0] and running.loop.observers[:-1] == hooks[1]  # its hooks are gone
-    deadline = time.monotonic() + 5
-    while controller.reference != reference and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert controller.reference == reference
+    wait_for(lambda: controller.reference == reference, what="the reference given back")
 
 
 def test_a_live_bode_sweeps_the_running_loop(running, monkeypatch) -> None:
@@ -121,7 +145,7 @@ def test_live_analyses_are_refused_when_they_cannot_run(running) -> None:
         parse_request(f'{{"type": "identify", "controller": "{CONTROLLER}", "live": 1}}')
     assert info.value.field == "live" and info.value.value == 1
     running.handle(parse_request('{"type": "pause"}'))
-    time.sleep(0.2)  # the loop stops at its next cycle
+    wait_until_stopped(running)
     time_s = running.loop.time_s
     with pytest.raises(RequestError, match="paused") as info:
         run_analysis(running, live("identify"))

@@ -95,7 +95,9 @@ def test_page_loads_and_the_plot_advances_with_every_sample_in_order(browser, tu
     assert browser.find_element("id", GAIN_P).get_attribute("value") == "400"
     wait_for(lambda: (page_state(browser, "lastTime") or 0) > 0.5, what="data on the plot")
     draws0, time0, wall0 = page_state(browser, "draws"), page_state(browser, "lastTime"), time.monotonic()
-    time.sleep(3.0)
+    # The plot redraws and loop time moves on: a second of loop time and a few redraws later.
+    wait_for(lambda: page_state(browser, "lastTime") >= time0 + 1.0 and page_state(browser, "draws") >= draws0 + 3,
+             what="the plot to advance")
     draws1, time1, wall1 = page_state(browser, "draws"), page_state(browser, "lastTime"), time.monotonic()
     # How fast this machine redrew is a figure for make bench, not a test; that it redrew and that
     # loop time advanced are behaviour.
@@ -177,16 +179,26 @@ def test_hostile_and_malformed_input_is_refused_on_the_page_and_nothing_changes(
     save_artifact(browser, "tuning_page_refused_input.png")
 
 
+# Every status's loop time, as the page receives them (app.js dispatches each message as an event).
+RECORD_STATUS_TIMES = ("window.statusTimes = [];"
+                       "window.addEventListener('jointctl:status', (e) => window.statusTimes.push(e.detail.time_s));")
+
+
 def test_controls_pause_resume_reset_gravity_and_drop_weight(browser, tune):
     server = tune("one_dof", "--controllers", "position")
     open_page(browser, server)
     wait_for(lambda: (page_state(browser, "lastTime") or 0) > 0.3, what="data")
+    browser.execute_script(RECORD_STATUS_TIMES)
     click_and_wait(browser, "pause")
     wait_for(lambda: page_state(browser, "status")["paused"], what="paused")
-    time.sleep(0.5)  # the loop stops after the cycle it is in; statuses come 4 times a second
-    frozen = page_state(browser, "status")["time_s"]
-    time.sleep(0.6)
-    assert page_state(browser, "status")["time_s"] == frozen
+    # The loop stops after the cycle it is in: statuses (4 a second, a quarter second of loop time
+    # apart while it runs) then report one time. Three in a row do; two more still do.
+    times = lambda: browser.execute_script("return window.statusTimes;")  # noqa: E731
+    wait_for(lambda: len(times()) >= 3 and len(set(times()[-3:])) == 1, what="statuses of a stopped loop")
+    seen = len(times())
+    frozen = times()[-1]
+    wait_for(lambda: len(times()) >= seen + 2, what="two more statuses")
+    assert set(times()[seen - 1:]) == {frozen}
     click_and_wait(browser, "resume")
     wait_for(lambda: page_state(browser, "status")["time_s"] > frozen + 0.3, what="time to go on")
 
@@ -298,18 +310,25 @@ def test_the_3d_view_moves_the_piston_by_the_commanded_distance_and_shows_the_dr
     open_page(browser, server)
     wait_for(lambda: view3d(browser, "window.jointctl3d.frames > 0 && window.jointctl3d.lastPoseTime > 1.5"),
              what="the 3D view drawn and posed")
+
+    def settle() -> None:
+        # ζ 0.25, ωn 19.9 rad/s: a 0.2 m step rings as 0.2 m · exp(-4.95 t); 2 s of loop time after the
+        # command was accepted leave 10 µm (the poses the page has may be a little older than the reply).
+        reply_pose_s = view3d(browser, "window.jointctl3d.lastPoseTime")
+        wait_for(lambda: view3d(browser, f"window.jointctl3d.lastPoseTime >= {reply_pose_s + 2.0}"), timeout_s=30,
+                 what="2 s of loop time in the 3D view")
     bodies = view3d(browser, "window.jointctl3d.bodies()")
     assert {"link1", "link2", "ft_sensor_link"} <= set(bodies) and "weight" not in bodies
     # Hold at -0.5 m, then step to -0.3 m: the top of the piston (the sensor disk) rises 0.2 m.
     choose(browser, "source-type", "constant")
     type_into(browser, "constant-value", "-0.5")
-    browser.find_element("id", "source-apply").click()
-    time.sleep(3.0)  # settled (ζ 0.25: amplitude below 1 % after 2 s)
+    click_and_wait(browser, "source-apply")
+    settle()
     before = view3d(browser, "window.jointctl3d.position('ft_sensor_link')")
     drawn_before = browser.execute_script("return window.jointctl3d.project(...arguments);", *before)
     type_into(browser, "constant-value", "-0.3")
-    browser.find_element("id", "source-apply").click()
-    time.sleep(3.0)
+    click_and_wait(browser, "source-apply")
+    settle()
     after = view3d(browser, "window.jointctl3d.position('ft_sensor_link')")
     drawn_after = browser.execute_script("return window.jointctl3d.project(...arguments);", *after)
     commanded = browser.execute_script("return window.jointctl3d.project(...arguments);",

@@ -42,6 +42,15 @@ def position(tuner: Tuner) -> float:
     return tuner.hardware.position[0]
 
 
+def settling_time_2pct(zeta: float, wn: float) -> float:
+    """The textbook 2 % settling time [s] of the continuous second-order loop's step: after the last
+    moment it is more than 2 % of the step away from its final value."""
+    wd = wn * math.sqrt(1 - zeta**2)
+    t = np.linspace(0.0, 10.0 / (zeta * wn), 400_001)
+    y = 1 - np.exp(-zeta * wn * t) / math.sqrt(1 - zeta**2) * np.sin(wd * t + math.acos(zeta))
+    return float(t[np.flatnonzero(np.abs(y - 1) > 0.02)[-1] + 1])
+
+
 def step(tuner: Tuner, *, settle_s: float = 3.0) -> dict:
     ask(tuner, type="source", controller=POSITION, source={"type": "step", "from": -0.5, "to": -0.3, "at": 1.0})
     run(tuner, 1.0 + settle_s)
@@ -91,7 +100,14 @@ def test_step_measurement_matches_the_second_order_theory_at_kp_400_and_1600(tun
         assert values["steady_state_error"] == pytest.approx(MOVING_MASS_KG * G / kp, rel=0.02)
         # Overshoot beyond the final value, in % of the measured step (0.2 m minus the droop change).
         assert values["overshoot_pct"] == pytest.approx(theory["overshoot_pct"], abs=3.0)
-        assert values["settling_time_s"] is not None
+        # The 2 % settling time of the textbook loop (0.71 s at Kp 400, 0.74 s at 1600). The simulated
+        # loop's ζ and ωn lie within 1 % of it (the held effort and the semi-implicit step move them by
+        # tenths of a percent); the settling time is taken over that range. It can jump by half a period
+        # where a peak grazes the band: at Kp 1600 the fifth peak is 2.5 % inside it (a 0.6 % faster
+        # decay leaves it outside), so the range spans both crossings there; 1 ms covers the sampling.
+        spread = [settling_time_2pct(theory["damping_ratio"] * a, theory["natural_frequency_rad_s"] * b)
+                  for a in (0.99, 1.01) for b in (0.99, 1.01)]
+        assert min(spread) - 0.001 <= values["settling_time_s"] <= max(spread) + 0.001, (values, spread)
         results[kp] = values["oscillation_frequency_hz"]
     zeta = [second_order_theory(MOVING_MASS_KG, kp, JOINT_DAMPING)["damping_ratio"] for kp in (400, 1600)]
     expected = 2 * math.sqrt(1 - zeta[1] ** 2) / math.sqrt(1 - zeta[0] ** 2)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 
 import mujoco
@@ -82,6 +83,11 @@ def test_the_pistons_top_edge_is_drawn_where_the_camera_projects_it(step_frames)
 
 def test_run_video_writes_an_mp4_and_a_small_gif(tmp_path) -> None:
     if shutil.which("ffmpeg") is None:
+        # The only end-to-end MP4/GIF test: where a run must not skip (CI sets JOINTCTL_REQUIRE_ROS and
+        # JOINTCTL_REQUIRE_BROWSER; any JOINTCTL_REQUIRE_* says so), a missing ffmpeg is a failure.
+        required = sorted(name for name, value in os.environ.items() if name.startswith("JOINTCTL_REQUIRE_") and value)
+        if required:
+            pytest.fail(f"{', '.join(required)} set but ffmpeg is missing (make render installs it)")
         pytest.skip("ffmpeg is missing (make render installs it)")
     scenario = load_scenario("one_dof_step", ["duration_s=1.0"])
     metrics = run_scenario(scenario, tmp_path, video=VideoSettings(fps=20, width=320, height=240))
