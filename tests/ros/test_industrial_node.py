@@ -15,7 +15,7 @@ import time
 
 import pytest
 
-from jointctl.industrial.simple_message import STOP_TRAJECTORY
+from jointctl.wire.simple_message import STOP_TRAJECTORY
 from tests.hardware.test_industrial import Peer
 from tests.ros.conftest import joint_positions, run, wait_for_topic
 

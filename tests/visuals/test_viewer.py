@@ -76,7 +76,7 @@ RUN_AND_LOOK = """
 import json, subprocess, sys, threading, time
 import mujoco.viewer
 from jointctl.cli import main
-from jointctl.tools.viewer import LiveViewer
+from jointctl.visuals.viewer import LiveViewer
 
 def windows():
     found = subprocess.run(["xdotool", "search", "--name", "MuJoCo"], capture_output=True, text=True)
