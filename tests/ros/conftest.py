@@ -218,6 +218,17 @@ class Probe:
         """The next ``count`` messages of ``topic``: ``{"text": as rostopic echo prints it, "msg": plain}``."""
         return self.ask(timeout_s, op="messages", topic=topic, count=count)["messages"]
 
+    def cursor(self, topic: str, timeout_s: float = 30.0) -> int:
+        """Subscribe to ``topic`` (once it has a publisher) and keep what arrives from now on: the
+        mark to read it from (:meth:`since`)."""
+        return self.ask(timeout_s, op="cursor", topic=topic)["cursor"]
+
+    def since(self, topic: str, cursor: int, count: int = 0, timeout_s: float = 30.0) -> list[dict]:
+        """The messages of ``topic`` received after ``cursor`` (plain JSON): all so far (``count`` 0),
+        or the first ``count``, waiting for them."""
+        answer = self.ask(timeout_s, op="messages", topic=topic, count=count, after=cursor, text=False)
+        return [m["msg"] for m in answer["messages"]]
+
     def message(self, topic: str, timeout_s: float = 30.0) -> dict:
         """The next message of ``topic``, as plain JSON (fields by name; times have "s" and "ns")."""
         return self.messages(topic, 1, timeout_s)[0]["msg"]

@@ -11,6 +11,11 @@ each with one JSON line on stdout: ``{"ok": true, ...}`` or ``{"ok": false, "err
   only, as ``rostopic echo -n 1`` would), each as ``{"text": what rostopic echo prints, "msg": the
   message as plain JSON}``. The type is the publisher's, asked of the master (as rostopic does);
   waits for a publisher to appear.
+- ``{"op": "cursor", "topic": T, "timeout": s}``: subscribes (once a publisher is there) and answers
+  ``"cursor"``, the number of messages of ``T`` received so far; from then on every message is kept
+  (up to the last 100 000). ``{"op": "messages", ..., "after": cursor}`` then answers the first
+  ``count`` messages received after that cursor (``count`` 0: all received so far), waiting for
+  them; ``"cursor"`` in the answer is where the answer ends.
 - ``{"op": "publish", "topic": T, "type": "std_msgs/Float64", "msg": {...}, "timeout": s}``: once
   some subscriber is connected (as ``rostopic pub -1`` does, without its 3 s linger), publishes.
   ``"connections"`` answers how many subscribers it reached.
@@ -78,7 +83,7 @@ def subscribe(topic: str, deadline: float):
         with lock:
             entry["count"] += 1
             entry["kept"].append((entry["count"], msg))
-            del entry["kept"][:-2000]
+            del entry["kept"][:-100_000]
             lock.notify_all()
 
     entry["subscriber"] = rospy.Subscriber(topic, get_message_class(kind), on_message, queue_size=2000,
@@ -95,7 +100,9 @@ def messages(request: dict) -> dict:
     if entry is None:
         return {"ok": False, "error": f"no publisher of {topic} appeared"}
     with lock:
-        after = entry["count"]
+        after = entry["count"] if request.get("after") is None else int(request["after"])
+        if count == 0:
+            count = entry["count"] - after
         while entry["count"] < after + count:
             left = deadline - time.monotonic()
             if left <= 0:
@@ -103,8 +110,18 @@ def messages(request: dict) -> dict:
                                               f"within the timeout"}
             lock.wait(left)
         got = [msg for k, msg in entry["kept"] if after < k <= after + count]
-    return {"ok": True, "type": entry["type"],
-            "messages": [{"text": genpy.message.strify_message(m), "msg": plain(m)} for m in got]}
+    text = request.get("text", True)
+    return {"ok": True, "type": entry["type"], "cursor": after + count,
+            "messages": [{"text": genpy.message.strify_message(m) if text else None, "msg": plain(m)}
+                         for m in got]}
+
+
+def cursor(request: dict) -> dict:
+    entry = subscribe(request["topic"], time.monotonic() + float(request.get("timeout", 30.0)))
+    if entry is None:
+        return {"ok": False, "error": f"no publisher of {request['topic']} appeared"}
+    with lock:
+        return {"ok": True, "cursor": entry["count"]}
 
 
 def fill(msg, data):
@@ -144,7 +161,7 @@ def param(request: dict) -> dict:
 
 def main() -> None:
     rospy.init_node("jointctl_test_probe", anonymous=True, disable_signals=True)
-    operations = {"messages": messages, "publish": publish, "param": param, "ping": lambda _: {"ok": True}}
+    operations = {"messages": messages, "cursor": cursor, "publish": publish, "param": param, "ping": lambda _: {"ok": True}}
     print(json.dumps({"ok": True, "ready": rospy.get_name()}), flush=True)
     for line in sys.stdin:
         if not line.strip():

@@ -66,28 +66,6 @@ def test_non_finite_commands_are_refused_and_the_joint_holds(ros_env, serve, tmp
     assert "must be a finite number" in out
 
 
-def test_joint_states_are_stamped_every_period_in_order_and_the_force_sensor(position_served):
-    # publish_rate 50: consecutive samples are one 20 ms period of loop time apart, none lost, in
-    # order (the wall-clock rate belongs to make bench). A second of them.
-    stamps = joint_positions(position_served, JOINT_STATES, 50, "field.header.stamp")
-    steps = [b - a for a, b in zip(stamps, stamps[1:])]
-    assert steps == pytest.approx([0.02e9] * len(steps), abs=1e3)  # ns, within 1 µs
-    wrench = wait_for_topic(position_served, "/ft_sensor_topic")
-    force_z = float(re.search(r"force:\s*\n\s*x: \S+\n\s*y: \S+\n\s*z: (\S+)", wrench).group(1))
-    assert force_z == pytest.approx(-0.01 * 9.81, abs=1e-3)  # the plate's own weight, negative
-
-
-def test_rosbag_records_the_robot(position_served, tmp_path):
-    bag = tmp_path / "run.bag"
-    # --limit: rosbag stops by itself once it has recorded that many messages of each topic.
-    run(position_served, "rosbag", "record", "--limit", "60", "-O", str(bag), JOINT_STATES, "/ft_sensor_topic",
-        timeout=60)
-    info = run(position_served, "rosbag", "info", str(bag)).stdout
-    assert "sensor_msgs/JointState" in info and "geometry_msgs/WrenchStamped" in info
-    for topic in (JOINT_STATES, "/ft_sensor_topic"):
-        assert int(re.search(rf"{topic}\s+(\d+) msgs", info).group(1)) == 60  # over a second at 50 Hz
-
-
 def client(env, kind, server, joint_names, points, *extra):
     result = run(env, sys.executable, CLIENT, kind, server,
                  json.dumps({"joint_names": joint_names, "points": points}), *extra, timeout=90)
@@ -141,6 +119,30 @@ def test_sim_time_publishes_clock_and_stamps_in_loop_time(ros_env, serve, probe)
     assert probe.param("/use_sim_time") is True
     stamp = int(re.search(r"secs: (\d+)", wait_for_topic(ros_env, JOINT_STATES)).group(1))
     assert stamp < 120
+
+
+# -- read only: one served robot for these (last, so that it runs alone) --------------------------
+
+def test_joint_states_are_stamped_every_period_in_order_and_the_force_sensor(position_served):
+    # publish_rate 50: consecutive samples are one 20 ms period of loop time apart, none lost, in
+    # order (the wall-clock rate belongs to make bench). A second of them.
+    stamps = joint_positions(position_served, JOINT_STATES, 50, "field.header.stamp")
+    steps = [b - a for a, b in zip(stamps, stamps[1:])]
+    assert steps == pytest.approx([0.02e9] * len(steps), abs=1e3)  # ns, within 1 µs
+    wrench = wait_for_topic(position_served, "/ft_sensor_topic")
+    force_z = float(re.search(r"force:\s*\n\s*x: \S+\n\s*y: \S+\n\s*z: (\S+)", wrench).group(1))
+    assert force_z == pytest.approx(-0.01 * 9.81, abs=1e-3)  # the plate's own weight, negative
+
+
+def test_rosbag_records_the_robot(position_served, tmp_path):
+    bag = tmp_path / "run.bag"
+    # --limit: rosbag stops by itself once it has recorded that many messages of each topic.
+    run(position_served, "rosbag", "record", "--limit", "60", "-O", str(bag), JOINT_STATES, "/ft_sensor_topic",
+        timeout=60)
+    info = run(position_served, "rosbag", "info", str(bag)).stdout
+    assert "sensor_msgs/JointState" in info and "geometry_msgs/WrenchStamped" in info
+    for topic in (JOINT_STATES, "/ft_sensor_topic"):
+        assert int(re.search(rf"{topic}\s+(\d+) msgs", info).group(1)) == 60  # over a second at 50 Hz
 
 
 def test_the_node_reports_its_loop_lateness(position_served):
