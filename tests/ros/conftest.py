@@ -285,6 +285,7 @@ class Graph:
         """The master as a new one: every parameter but the master's own deleted, and no node on the
         graph but the probe (a node killed without leaving is unregistered, as ``rosnode cleanup``
         does)."""
+        self.probe.ask(op="forget")
         master = self.rosgraph()
         for name in master.getParamNames():
             if name != "/run_id":

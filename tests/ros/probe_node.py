@@ -8,7 +8,8 @@ each with one JSON line on stdout: ``{"ok": true, ...}`` or ``{"ok": false, "err
 
 - ``{"op": "messages", "topic": T, "count": n, "timeout": s}``: the first ``n`` messages of ``T``
   that arrive after the request (after the subscription is up, for a new topic: so the first one
-  only, as ``rostopic echo -n 1`` would), each as ``{"text": what rostopic echo prints, "msg": the
+  only, as ``rostopic echo -n 1`` would; the subscription ends with the answer unless a cursor
+  keeps it), each as ``{"text": what rostopic echo prints, "msg": the
   message as plain JSON}``. The type is the publisher's, asked of the master (as rostopic does);
   waits for a publisher to appear.
 - ``{"op": "cursor", "topic": T, "timeout": s}``: subscribes (once a publisher is there) and answers
@@ -20,6 +21,7 @@ each with one JSON line on stdout: ``{"ok": true, ...}`` or ``{"ok": false, "err
   some subscriber is connected (as ``rostopic pub -1`` does, without its 3 s linger), publishes.
   ``"connections"`` answers how many subscribers it reached.
 - ``{"op": "param", "name": N}``: the parameter (``"missing": true`` when absent).
+- ``{"op": "forget"}``: leave every topic, subscribed or published (the cursors end).
 - ``{"op": "ping"}``: the node is up.
 """
 
@@ -77,7 +79,7 @@ def subscribe(topic: str, deadline: float):
     kind = topic_type(topic, deadline)
     if kind is None:
         return None
-    entry = {"count": 0, "kept": [], "type": kind}
+    entry = {"count": 0, "kept": [], "type": kind, "keep": False}
 
     def on_message(msg):
         with lock:
@@ -110,6 +112,10 @@ def messages(request: dict) -> dict:
                                               f"within the timeout"}
             lock.wait(left)
         got = [msg for k, msg in entry["kept"] if after < k <= after + count]
+    if not entry["keep"]:  # a look, not a record: leave the topic (a 1 kHz one costs this node's CPU)
+        with lock:
+            topics.pop(topic, None)
+        entry["subscriber"].unregister()
     text = request.get("text", True)
     return {"ok": True, "type": entry["type"], "cursor": after + count,
             "messages": [{"text": genpy.message.strify_message(m) if text else None, "msg": plain(m)}
@@ -121,6 +127,7 @@ def cursor(request: dict) -> dict:
     if entry is None:
         return {"ok": False, "error": f"no publisher of {request['topic']} appeared"}
     with lock:
+        entry["keep"] = True
         return {"ok": True, "cursor": entry["count"]}
 
 
@@ -159,9 +166,23 @@ def param(request: dict) -> dict:
         return {"ok": True, "missing": True}
 
 
+def forget(request: dict) -> dict:
+    """Leave every topic (the cursors end), subscribed or published."""
+    with lock:
+        entries = list(topics.values())
+        topics.clear()
+    for entry in entries:
+        entry["subscriber"].unregister()
+    for publisher in publishers.values():
+        publisher.unregister()
+    publishers.clear()
+    return {"ok": True}
+
+
 def main() -> None:
     rospy.init_node("jointctl_test_probe", anonymous=True, disable_signals=True)
-    operations = {"messages": messages, "cursor": cursor, "publish": publish, "param": param, "ping": lambda _: {"ok": True}}
+    operations = {"messages": messages, "cursor": cursor, "publish": publish, "param": param, "forget": forget,
+                  "ping": lambda _: {"ok": True}}
     print(json.dumps({"ok": True, "ready": rospy.get_name()}), flush=True)
     for line in sys.stdin:
         if not line.strip():
