@@ -149,9 +149,11 @@ def test_a_nan_velocity_command_is_refused_and_the_joint_keeps_its_state(ros_env
     stopped = at_rest(probe)
     q_stopped = stopped[-1]
     assert q_stopped > -0.5 + 0.01  # it did move
-    probe.publish(VEL_COMMAND, "std_msgs/Float64", {"data": "nan"})
-    probe.publish(VEL_COMMAND, "std_msgs/Float64", {"data": "inf"})
-    printed_until(node, lambda text: text.count("jointctl: refused") >= 2, "both bad commands to be refused")
+    # One at a time: the node subscribes with a queue of one (as ros_control does), so a second
+    # message could replace the first unread.
+    for count, bad in enumerate(("nan", "inf"), start=1):
+        probe.publish(VEL_COMMAND, "std_msgs/Float64", {"data": bad})
+        printed_until(node, lambda text: text.count("jointctl: refused") >= count, f"{bad} to be refused")
     # States published after both were refused: nothing changed.
     after = probe.since(JOINT_STATES, probe.cursor(JOINT_STATES), 25)
     assert all(abs(m["velocity"][0]) < 1e-3 and m["position"][0] == pytest.approx(q_stopped, abs=1e-4)
