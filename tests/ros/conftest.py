@@ -146,7 +146,7 @@ class Master:
                                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         self.lines: list[str] = []
         threading.Thread(target=lambda: self.lines.extend(self.process.stdout), daemon=True).start()
-        proxy = xmlrpc.client.ServerProxy(self.uri)
+        proxy = xmlrpc.client.ServerProxy(self.uri, transport=_Timeout(2.0))  # whatever holds the port may not answer
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline:
             if any("Unable to start XML-RPC server" in line for line in self.lines) or self.process.poll() is not None:
