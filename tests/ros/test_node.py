@@ -73,6 +73,12 @@ def test_non_finite_commands_are_refused_and_the_joint_holds(ros_env, serve, pro
     assert "must be a finite number" in out
 
 
+def client(env, kind, server, joint_names, points, *extra):
+    result = run(env, sys.executable, CLIENT, kind, server,
+                 json.dumps({"joint_names": joint_names, "points": points}), *extra, timeout=90)
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
 SEQUENCE = str(Path(__file__).with_name("goal_sequence_client.py"))
 
 
