@@ -3,12 +3,14 @@
     python goal_sequence_client.py KIND SERVER JSON_GOALS
 
 KIND is follow, traj or arm (as in action_client.py). JSON_GOALS is a list of
-``{"send_at_s": t, "stamp_age_s": a, "cancel_at_s": c, "joint_names": [...], "points": [[t, [q...]], ...]}``:
-each goal is sent ``send_at_s`` after the first, by its own SimpleActionClient (the book's prompter
-sends its next goal while the first runs); ``stamp_age_s`` stamps the trajectory header that many
+``{"send_at_s": t, "after_previous": b, "stamp_age_s": a, "cancel_at_s": c, "joint_names": [...],
+"points": [[t, [q...]], ...]}``: each goal is sent ``send_at_s`` after the first, by its own
+SimpleActionClient (the book's prompter sends its next goal while the first runs), or, with
+``after_previous``, once the goal before it has ended (one process for goals sent one after another); ``stamp_age_s`` stamps the trajectory header that many
 seconds before sending (the book's playfile client stamps before waiting for the server; 0 leaves
 the stamp zero); ``cancel_at_s`` cancels the goal then. Prints one JSON line: per goal, its final
-state name, status text, result fields and the time (s after the first send) it ended.
+state name, status text, result fields, the number of feedback messages and the time (s after the
+first send) it ended.
 """
 
 import json
@@ -44,21 +46,27 @@ def main() -> None:
             print(json.dumps({"error": "NO_SERVER"}))
             return
     ended = [None] * len(specs)
+    feedback = [0] * len(specs)
     start = time.monotonic()
 
     def done_callback(k):
         return lambda state, result: ended.__setitem__(k, time.monotonic() - start)
 
+    def feedback_callback(k):
+        return lambda fb: feedback.__setitem__(k, feedback[k] + 1)
+
     for k, (spec, client) in enumerate(zip(specs, clients)):
         while time.monotonic() - start < spec.get("send_at_s", 0.0):
             time.sleep(0.005)
+        if spec.get("after_previous") and k > 0:
+            clients[k - 1].wait_for_result(rospy.Duration(120))
         goal = Goal()
         goal.trajectory = JointTrajectory(joint_names=spec["joint_names"])
         for t, q in spec["points"]:
             goal.trajectory.points.append(JointTrajectoryPoint(positions=q, time_from_start=rospy.Duration(t)))
         if spec.get("stamp_age_s"):
             goal.trajectory.header.stamp = rospy.Time.now() - rospy.Duration(spec["stamp_age_s"])
-        client.send_goal(goal, done_cb=done_callback(k))
+        client.send_goal(goal, done_cb=done_callback(k), feedback_cb=feedback_callback(k))
     cancels = sorted((spec["cancel_at_s"], k) for k, spec in enumerate(specs) if "cancel_at_s" in spec)
     for at_s, k in cancels:
         while time.monotonic() - start < at_s:
@@ -70,7 +78,7 @@ def main() -> None:
         result = client.get_result()
         report.append({"state": STATES.get(client.get_state(), "?"), "text": client.get_goal_status_text(),
                        "result": {f: getattr(result, f) for f in result.__slots__} if result is not None else {},
-                       "ended_s": ended[k]})
+                       "feedback": feedback[k], "ended_s": ended[k]})
     print(json.dumps(report))
 
 

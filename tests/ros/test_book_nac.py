@@ -15,17 +15,17 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from tests.ros.conftest import wait_until
+
 JOINT_STATES = "/one_DOF_robot/joint_states"
 NODE = str(Path(__file__).with_name("book_nac_node.py"))
 X_ATT, K_VIRT = -0.2, 1000.0           # the book's node
 G, WEIGHT, PLATE = 9.8, 10.0, 0.01     # the book's gravity; the weight and the sensor plate [kg]
-HOLD_BEFORE_SPAWN_S = 4.0              # the node takes the empty piston to rest first [s]
 AFTER_CONTACT_S = 9.0                  # how long the node records after the weight lands [s]
 REST_WINDOW_S = 1.0                    # rest figures: means over the last second of the record
 CONTACT_N = 10.0  # sensed load that means the weight is on the disk (its weight is 98 N); the
@@ -59,7 +59,7 @@ def world(env, steps: list[dict]) -> list[dict]:
     return json.loads(result.stdout.strip().splitlines()[-1])["steps"]
 
 
-def test_the_book_nac_node_over_ros_rests_the_weight_at_x_att_plus_f_over_k(ros_env, serve, tmp_path):
+def test_the_book_nac_node_over_ros_rests_the_weight_at_x_att_plus_f_over_k(ros_env, serve, probe, tmp_path):
     serve("one_dof", "--controllers", "velocity", wait_topic=JOINT_STATES)
     gravity, = world(ros_env, [{"do": "set", "gravity": [0.0, 0.0, -G]}])
     assert gravity["success"], gravity
@@ -68,7 +68,12 @@ def test_the_book_nac_node_over_ros_rests_the_weight_at_x_att_plus_f_over_k(ros_
                              "--timeout", "120"], env=ros_env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     try:
-        time.sleep(HOLD_BEFORE_SPAWN_S)
+        # The node takes the empty piston to its unloaded rest first, x_att + F_plate/K (-0.2001 m).
+        def at_unloaded_rest():
+            msg = probe.message(JOINT_STATES)
+            return abs(msg["position"][0] - (X_ATT - PLATE * G / K_VIRT)) < 2e-4 and abs(msg["velocity"][0]) < 1e-3
+
+        wait_until(at_unloaded_rest, "the node to hold the empty piston at its unloaded rest", timeout_s=60)
         spawn, = world(ros_env, [{"do": "spawn", "name": "cyl_weight", "xml": BOOK_WEIGHT.read_text(),
                                   "xyz": [0, 0, 4]}])
         assert spawn["success"], spawn

@@ -15,7 +15,7 @@ import yaml
 from jointctl.model.loader import load_robot_model
 from jointctl.scenario.analyses.minimal_robot import pendulum_theory
 from jointctl.trajectory.timing import chapter_timing
-from tests.ros.conftest import joint_positions, run, settle_to
+from tests.ros.conftest import joint_positions, run, settle_to, wait_for_topic, wait_until
 
 ONE_DOF_STATES = "/one_DOF_robot/joint_states"
 ARM_STATES = "/arm7dof/joint_states"
@@ -48,18 +48,24 @@ def stop_and_read(process) -> str:
     return process.communicate(timeout=20)[0]
 
 
+#: Loop time per wall-clock time where a test waits out the book's long goals: goals are timed in
+#: loop time, so a wall-clock span of a goal is its duration / SPEED at the least.
+SPEED = 2.0
+
+
 def test_the_prompters_second_goal_waits_for_the_first_and_starts_where_it_ended(ros_env, serve):
-    serve("arm7dof", "--controllers", "trajectory", wait_topic=ARM_STATES)
+    serve("arm7dof", "--controllers", "trajectory", "--speed", str(SPEED), wait_topic=ARM_STATES)
     first = timed_path([[0.0] * 7, PRE_POSE])
     assert first["points"][-1][0] == pytest.approx(13.333, abs=1e-3)
     target = PRE_POSE[:6] + [0.3]
     second = timed_path([PRE_POSE, target])  # from the last commanded pose, at time 0
-    second["send_at_s"] = 10.0  # as the prompter: while the first still runs
+    # As the prompter: while the first still runs (it takes 13.3 s / SPEED of wall clock at least).
+    second["send_at_s"] = 10.0 / SPEED
     one, two = send_goals(ros_env, "arm", "trajActionServer", [first, second])
     assert one["state"] == "SUCCEEDED", one
     assert two["state"] == "SUCCEEDED", two
     # The second ran after the first: it ended at least its own duration after the first ended.
-    assert two["ended_s"] >= one["ended_s"] + second["points"][-1][0]
+    assert two["ended_s"] >= one["ended_s"] + second["points"][-1][0] / SPEED
     assert two["result"]["return_val"] == one["result"]["return_val"] + 1  # goals served so far
     assert arm_pose(ros_env) == pytest.approx(target, abs=0.02)
 
@@ -149,13 +155,13 @@ def test_the_book_clients_sine_goal_succeeds_on_the_minimal_robot(ros_env, serve
     assert settle_to(ros_env, final, timeout_s=10.0) == pytest.approx(final, abs=0.02)
 
 
-def test_the_global_pos_cmd_topic_commands_the_minimal_robots_position_loop(ros_env, serve):
+def test_the_global_pos_cmd_topic_commands_the_minimal_robots_position_loop(ros_env, serve, probe):
     serve("minimal_robot", "--controllers", "position", wait_topic=ONE_DOF_STATES)
     serve_robot = load_robot_model(MINIMAL_GOAL.parents[1] / "urdf" / "minimal_robot.xacro")
     theory = pendulum_theory(serve_robot, "joint1", (0.0, 0.0, -9.81), kp=10.0, kv=3.0)
-    run(ros_env, "rostopic", "pub", "-1", "/pos_cmd", "std_msgs/Float64", "--", "0.3")
-    state = run(ros_env, "rostopic", "echo", "-n", "1", "/one_DOF_robot/joint1_position_controller/state").stdout
-    assert "set_point: 0.3" in state
+    probe.publish("/pos_cmd", "std_msgs/Float64", {"data": 0.3})
+    wait_until(lambda: "set_point: 0.3" in wait_for_topic(ros_env, "/one_DOF_robot/joint1_position_controller/state"),
+               "the position loop's set point to be 0.3")
     # The book's loop without compensation holds where Kp·(0.3 - q) balances gravity's torque.
     rest = theory.equilibrium(0.3)
     assert rest > 0.35  # gravity pulls the inverted pendulum past its command

@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from tests.ros.conftest import joint_positions, run, wait_for_topic
+from tests.ros.conftest import joint_positions, run, wait_for_topic, wait_until
 
 ONE_DOF_STATES = "/one_DOF_robot/joint_states"
 ARM_STATES = "/arm7dof/joint_states"
@@ -69,7 +69,7 @@ class Terminal:
         return status
 
 
-def test_the_sine_commander_drives_the_position_controller(ros_env, serve):
+def test_the_sine_commander_drives_the_position_controller(ros_env, serve, probe):
     serve("one_dof", "--controllers", "position", wait_topic=ONE_DOF_STATES)
     commander = Terminal(ros_env, *JOINTCTL, "sine")
     try:
@@ -81,7 +81,14 @@ def test_the_sine_commander_drives_the_position_controller(ros_env, serve):
         commander.expect("enter freq (in Hz): ")
         commander.type("1")
         commander.expect("publishing")
-        time.sleep(2.0)
+        # The loop's transient decays at ζ·ωn = 5/s: a second of loop time after the sine reaches the
+        # loop's set point, less than 1 % of it is left.
+        state = "/one_DOF_robot/joint1_position_controller/state"
+        mark = probe.cursor(state)
+        moving = wait_until(lambda: [m["header"]["stamp"]["s"] for m in probe.since(state, mark)
+                                     if m["set_point"] != -0.5], "the sine to reach the loop")
+        wait_until(lambda: probe.since(state, mark)[-1]["header"]["stamp"]["s"] > moving[0] + 1.0,
+                   "a second of loop time of the sine")
         q = joint_positions(ros_env, ONE_DOF_STATES, 75)  # 1.5 s at 50 Hz: a full period and a half
         amplitude = (max(q) - min(q)) / 2
         centre = (max(q) + min(q)) / 2
@@ -140,7 +147,8 @@ def test_clients_without_a_master_fail_with_one_line(tmp_path):
 
 
 def test_the_prompter_over_ros(ros_env, serve):
-    serve("arm7dof", "--controllers", "trajectory", wait_topic=ARM_STATES)
+    # Twice the wall clock's pace: the pre-pose goal is the book's 13.3 s of loop time.
+    serve("arm7dof", "--controllers", "trajectory", "--speed", "2", wait_topic=ARM_STATES)
     prompter = Terminal(ros_env, *JOINTCTL, "prompt", "arm7dof", "--ros")
     try:
         prompter.expect("moving to the pre-pose [0.0000, 1.0000, 0.0000, -2.0000, 0.0000, 1.0000, 0.0000]")

@@ -1,4 +1,8 @@
-"""PID gains changed on a running node through dynamic_reconfigure, checked with ROS's own tools."""
+"""PID gains changed on a running node through dynamic_reconfigure, checked with ROS's own tools.
+
+Tests that leave the gains as they found them (reading them, or having invalid ones refused) share
+one served robot (``position_served``); a test that changes them serves its own.
+"""
 
 from __future__ import annotations
 
@@ -6,12 +10,11 @@ import json
 import os
 import re
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
-from tests.ros.conftest import joint_position, run, settle_to, wait_for_topic
+from tests.ros.conftest import joint_position, run, served_graph, settle_to, wait_for_topic, wait_until
 
 try:
     import dynamic_reconfigure.server  # noqa: F401
@@ -34,6 +37,15 @@ def serve_gains(serve):
     return lambda *args: serve(*args, wait_topic=JOINT_STATES)
 
 
+@pytest.fixture(scope="module")
+def position_served(tmp_path_factory):
+    """one_dof under its position controller for the tests that leave its gains as they are: the
+    graph (its env; the node's output in ``folder/serve.log``)."""
+    with served_graph(tmp_path_factory.mktemp("gains"), "one_dof", "--controllers", "position",
+                      wait_topic=JOINT_STATES) as (graph, _):
+        yield graph
+
+
 def position(env) -> float:
     return joint_position(env, JOINT_STATES)
 
@@ -48,47 +60,16 @@ def state_gains(env, topic: str = POSITION_STATE) -> dict:
     return {k: float(re.search(rf"^{k}: (\S+)$", text, re.M).group(1)) for k in ("p", "i", "d")}
 
 
-def test_the_server_starts_from_the_yaml_gains(ros_env, serve_gains):
+def test_a_new_p_gain_applies_on_the_running_loop(ros_env, serve_gains, probe):
     serve_gains("one_dof", "--controllers", "position")
-    config = reconfigure(ros_env, POSITION_PID)
-    assert (config["p"], config["i"], config["d"]) == (400.0, 0.0, 0.0)
-    assert config["antiwindup"] is False
-    assert config["i_clamp_max"] == 1000.0 and config["i_clamp_min"] == -1000.0  # the effort limit
-    described = config["_descriptions"]
-    assert {n: d["type"] for n, d in described.items()} == {
-        "p": "double", "i": "double", "d": "double", "i_clamp_min": "double", "i_clamp_max": "double",
-        "antiwindup": "bool"}
-    assert all(described[n]["min"] == 0.0 for n in "pid")
-
-
-def test_a_new_p_gain_applies_on_the_running_loop(ros_env, serve_gains):
-    serve_gains("one_dof", "--controllers", "position")
-    assert position(ros_env) == pytest.approx(-0.5 - DROOP, abs=0.001)
+    assert settle_to(ros_env, -0.5 - DROOP, tol=0.001) == pytest.approx(-0.5 - DROOP, abs=0.001)
     config = reconfigure(ros_env, POSITION_PID, {"p": 800})
     assert config["p"] == 800.0
     # The controller's state reports the new gain, and the gravity droop halves.
-    deadline = time.monotonic() + 5
-    while state_gains(ros_env)["p"] != 800.0 and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert state_gains(ros_env)["p"] == 800.0
+    wait_until(lambda: state_gains(ros_env)["p"] == 800.0, "the controller's state to report p 800")
     assert settle_to(ros_env, -0.5 - DROOP / 2, tol=0.001) == pytest.approx(-0.5 - DROOP / 2, abs=0.001)
     # dynamic_reconfigure mirrors the configuration on the parameter server, as rqt expects.
-    assert run(ros_env, "rosparam", "get", f"{POSITION_PID}/p").stdout.strip() == "800.0"
-
-
-@pytest.mark.parametrize("changes", [{"p": -5.0}, {"d": float("nan")}, {"i": float("inf")},
-                                     {"i_clamp_min": 10.0, "i_clamp_max": 5.0}])
-def test_invalid_gains_are_refused_and_the_gains_stay(ros_env, serve_gains, changes):
-    process = serve_gains("one_dof", "--controllers", "position")
-    config = reconfigure(ros_env, POSITION_PID, changes)
-    assert (config["p"], config["i"], config["d"]) == (400.0, 0.0, 0.0)  # the answer: unchanged
-    assert (config["i_clamp_min"], config["i_clamp_max"]) == (-1000.0, 1000.0)
-    assert state_gains(ros_env) == {"p": 400.0, "i": 0.0, "d": 0.0}
-    assert position(ros_env) == pytest.approx(-0.5 - DROOP, abs=0.001)
-    assert run(ros_env, "rosparam", "get", f"{POSITION_PID}/p").stdout.strip() == "400.0"
-    process.terminate()
-    output = process.communicate(timeout=10)[0]
-    assert "refused gains" in output
+    assert probe.param(f"{POSITION_PID}/p") == 800.0
 
 
 def test_the_velocity_controller_gets_a_server_too(ros_env, serve_gains):
@@ -136,3 +117,34 @@ def answer_gains(config):
     from jointctl.control.pid import PidGains
     return PidGains(config["p"], config["i"], config["d"], config["i_clamp_min"], config["i_clamp_max"],
                     config["antiwindup"])
+
+
+# -- gains left as they are: one served robot for these (last, so that it runs alone) -------------
+
+def test_the_server_starts_from_the_yaml_gains(position_served):
+    config = reconfigure(position_served.env, POSITION_PID)
+    assert (config["p"], config["i"], config["d"]) == (400.0, 0.0, 0.0)
+    assert config["antiwindup"] is False
+    assert config["i_clamp_max"] == 1000.0 and config["i_clamp_min"] == -1000.0  # the effort limit
+    described = config["_descriptions"]
+    assert {n: d["type"] for n, d in described.items()} == {
+        "p": "double", "i": "double", "d": "double", "i_clamp_min": "double", "i_clamp_max": "double",
+        "antiwindup": "bool"}
+    assert all(described[n]["min"] == 0.0 for n in "pid")
+
+
+@pytest.mark.parametrize("changes", [{"p": -5.0}, {"d": float("nan")}, {"i": float("inf")},
+                                     {"i_clamp_min": 10.0, "i_clamp_max": 5.0}])
+def test_invalid_gains_are_refused_and_the_gains_stay(position_served, changes):
+    env, log = position_served.env, position_served.folder / "serve.log"
+    # The shared robot as served (a change that got through in an earlier case would show here).
+    assert state_gains(env) == {"p": 400.0, "i": 0.0, "d": 0.0}
+    refusals = log.read_text().count("refused gains")
+    config = reconfigure(env, POSITION_PID, changes)
+    # The request arrived (the server answered it, and said so in its log) and changed nothing.
+    wait_until(lambda: log.read_text().count("refused gains") == refusals + 1, "the node to log the refusal")
+    assert (config["p"], config["i"], config["d"]) == (400.0, 0.0, 0.0)  # the answer: unchanged
+    assert (config["i_clamp_min"], config["i_clamp_max"]) == (-1000.0, 1000.0)
+    assert state_gains(env) == {"p": 400.0, "i": 0.0, "d": 0.0}  # a state published after the answer
+    assert position(env) == pytest.approx(-0.5 - DROOP, abs=0.001)
+    assert position_served.probe.param(f"{POSITION_PID}/p") == 400.0

@@ -21,7 +21,6 @@ model_states while it runs the steps, printing one JSON line.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -133,32 +132,22 @@ if __name__ != "__main__":
     import pytest
     import yaml
 
-    from tests.ros.conftest import free_port, run, wait_for_topic
+    from tests.ros.conftest import Master, Probe, ros_environment, run, wait_for_topic
 
     class Graph:
         """A master on a free port and the processes started against it (stopped at exit)."""
 
         def __init__(self, folder: Path) -> None:
-            self.port = free_port()
             self.folder = folder
-            env = dict(os.environ)
-            build = ROOT / "build" / "ros"
-            env.update({
-                "ROS_MASTER_URI": f"http://127.0.0.1:{self.port}", "ROS_HOSTNAME": "127.0.0.1",
-                "ROS_HOME": str(folder / "ros_home"),
-                "ROS_PACKAGE_PATH": f"{build / 'src'}:{env.get('ROS_PACKAGE_PATH', '')}".rstrip(":"),
-                "PYTHONPATH": f"{build / 'py'}:{env.get('PYTHONPATH', '')}".rstrip(":"),
-            })
+            env = ros_environment(folder, 0)
             for name in ("DISPLAY", "WAYLAND_DISPLAY"):  # no display: --rviz must say so and serve on
                 env.pop(name, None)
             self.env = env
             self.processes: list[subprocess.Popen] = []
-            self.start("rosmaster", "--core", "-p", str(self.port))
-            deadline = time.monotonic() + 10
-            while not self.master_online():
-                if time.monotonic() > deadline:
-                    raise AssertionError("the ROS master did not come up")
-                time.sleep(0.05)
+            # Up once it answers with its own pid; retried on another port after a failed bind.
+            self.master_process = Master(env)
+            self.port = self.master_process.port
+            self.probe = Probe(env)
 
         def master(self):
             import rosgraph
@@ -191,8 +180,10 @@ if __name__ != "__main__":
             return process.wait()
 
         def close(self) -> None:
-            for process in reversed(self.processes):  # the master last
+            self.probe.close()
+            for process in reversed(self.processes):
                 self.stop(process, signal.SIGINT if "robot_state_publisher" in str(process.args) else signal.SIGTERM)
+            self.master_process.stop()  # the master last
 
     @contextmanager
     def graph(folder: Path):

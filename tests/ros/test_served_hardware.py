@@ -57,3 +57,59 @@ def test_states_that_do_not_name_every_joint_are_refused_naming_them() -> None:
     hardware._on_state(state(1.0, ["a", "c"], [0.0, 0.0]))
     with pytest.raises(JointCtlError, match="name a, c, not every joint of the robot"):
         hardware.wait_for_state(timeout_s=0.1)
+
+
+class RecordingPublisher:
+    """What rospy.Publisher is to ServedRobotHardware.write: the messages published, in order, per
+    topic (what the served node's command subscriber would receive, each one)."""
+
+    sent: list[tuple[str, float]] = []
+
+    def __init__(self, name, data_class, **_):
+        self.resolved_name = name
+
+    def publish(self, msg) -> None:
+        RecordingPublisher.sent.append((self.resolved_name, msg.data))
+
+    def get_num_connections(self) -> int:
+        return 1
+
+    def unregister(self) -> None:
+        pass
+
+
+def test_write_publishes_each_loops_reference_when_it_changes_and_only_then(monkeypatch) -> None:
+    from jointctl.hardware.interface import VELOCITY
+
+    monkeypatch.setattr(rospy, "Publisher", RecordingPublisher)
+    monkeypatch.setattr(RecordingPublisher, "sent", [])
+    # Three joints: the first not commanded, the second a velocity loop, the third a position loop
+    # (so a wrong index or interface shows).
+    hardware = ServedRobotHardware("arm", ["a", "b", "c"], {"c": (POSITION, "c_pos"), "b": (VELOCITY, "b_vel")})
+    position, velocity = hardware.command_buffer(POSITION), hardware.command_buffer(VELOCITY)
+    sent = RecordingPublisher.sent
+    c_topic, b_topic = "/arm/c_pos/command", "/arm/b_vel/command"
+
+    def cycle() -> list[tuple[str, float]]:
+        """One write(); what it published."""
+        before = len(sent)
+        hardware.write()
+        return sorted(sent[before:])
+
+    position[2], velocity[1] = -0.3, 0.0
+    assert cycle() == sorted([(c_topic, -0.3), (b_topic, 0.0)])  # the first write sends every reference
+    assert cycle() == []  # nothing changed: nothing sent
+    position[2] = -0.25
+    assert cycle() == [(c_topic, -0.25)]  # the buffer written in place after construction is read
+    assert cycle() == []
+    velocity[1] = 0.1
+    position[0] = velocity[2] = 9.0  # other joints' entries and another interface's: not these loops'
+    assert cycle() == [(b_topic, 0.1)]
+    position[2] = -0.3  # back to a value sent before: a change from the last one sent
+    velocity[1] = 0.2
+    assert cycle() == sorted([(c_topic, -0.3), (b_topic, 0.2)])
+    for _ in range(3):
+        assert cycle() == []
+    position[2] = -0.2
+    position[2] = -0.1  # changed twice between cycles: the latest is what goes out
+    assert cycle() == [(c_topic, -0.1)]

@@ -65,8 +65,11 @@ class ServedRobotHardware(HardwareInterface):
         #: Each loop's reference when this side connected (joint -> value or None), restored on leaving.
         self.set_points: dict[str, float | None] = {}
         self.fault = "no joint state yet"
+        # rospy drops the oldest messages once its queue is full: 100 was a tenth of a second at the
+        # publisher's 1 kHz, and a busy machine stalls this process's callbacks longer than that
+        # (identification then refused its recording for the gap). Ten seconds' worth is held instead.
         self._subscriber = rospy.Subscriber(f"/{self.namespace}/joint_states", JointState, self._on_state,
-                                            queue_size=100, tcp_nodelay=True)
+                                            queue_size=10_000, tcp_nodelay=True)
 
     # -- state -------------------------------------------------------------------------------------
     def _on_state(self, msg: JointState) -> None:
