@@ -99,7 +99,7 @@ class RawClient:
         self.sock.close()
 
 
-def point(seq, q, duration=0.0, velocity=0.0) -> JointTrajPt:
+def point(seq, q, duration=0.0, velocity=1.0) -> JointTrajPt:
     return JointTrajPt(seq, (q,), velocity, duration)
 
 

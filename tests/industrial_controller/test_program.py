@@ -44,7 +44,7 @@ DT = 0.001
 REQUEST, TOPIC = CommType.SERVICE_REQUEST, CommType.TOPIC
 
 
-def point(seq: int, positions, duration: float = 0.0, velocity: float = 0.0, *, comm=REQUEST,
+def point(seq: int, positions, duration: float = 0.0, velocity: float = 1.0, *, comm=REQUEST,
           big_endian: bool = False) -> Packet:
     return parse_packet(encode(JointTrajPt(seq, tuple(positions), velocity, duration), comm,
                                big_endian=big_endian), big_endian=big_endian)
@@ -59,7 +59,7 @@ def reply_code(reply: bytes, big_endian: bool = False) -> int:
 def run(program: ControllerProgram, seconds: float) -> tuple[list[float], list[float]]:
     q = v = None
     for _ in range(round(seconds / DT)):
-        q, v = program.cycle(DT)
+        q, v, _ = program.cycle(DT)
     return q, v
 
 
@@ -212,7 +212,7 @@ def test_a_refusal_while_moving_brakes_instead_of_halting() -> None:
     _, v = run(program, 0.3)
     assert v[0] == pytest.approx(1.0)
     program.handle(point(2, (math.nan, 0.0), 0.1))
-    _, v = program.cycle(DT)
+    _, v, _ = program.cycle(DT)
     assert v[0] == pytest.approx(1.0 - 5.0 * DT)  # decelerating, not stopped dead
     q, v = run(program, 1.0)
     assert v == [0.0, 0.0] and q[0] == pytest.approx(0.3 + DT + 0.1, abs=2e-3)  # v²/2a = 0.1 rad
@@ -268,7 +268,7 @@ def test_big_endian_requests_get_big_endian_replies() -> None:
 def test_a_connection_answers_packets_split_anywhere_and_skips_a_bad_header() -> None:
     connection = MotionConnection(ControllerProgram(LIMITS, [0.0, 0.0]))
     bad_header = struct.pack("<4i", 12, 11, 7, 0)  # comm_type 7
-    stream = encode(Ping(), REQUEST) + bad_header + encode(JointTrajPt(0, (0.0, 0.0), 0.0, 0.0), REQUEST)
+    stream = encode(Ping(), REQUEST) + bad_header + encode(JointTrajPt(0, (0.0, 0.0), 1.0, 0.0), REQUEST)
     replies = []
     for k in range(0, len(stream), 5):
         replies += connection.feed(stream[k:k + 5])
@@ -314,8 +314,8 @@ def test_no_byte_stream_of_refused_points_and_garbage_raises_or_moves_the_robot(
     assert run(program, 0.05)[0] == [0.25, -0.5] and not program.in_motion
     program.connection_lost()
     fresh = MotionConnection(program)
-    replies = fresh.feed(encode(JointTrajPt(0, (0.25, -0.5), 0.0, 0.0), REQUEST)
-                         + encode(JointTrajPt(1, (0.0, 0.0), 0.0, 1.0), REQUEST))
+    replies = fresh.feed(encode(JointTrajPt(0, (0.25, -0.5), 1.0, 0.0), REQUEST)
+                         + encode(JointTrajPt(1, (0.0, 0.0), 1.0, 1.0), REQUEST))
     assert [reply_code(r) for r in replies] == [ReplyCode.SUCCESS, ReplyCode.SUCCESS]
     assert run(program, 1.1)[0] == pytest.approx([0.0, 0.0], abs=1e-6)
 
