@@ -176,6 +176,7 @@ class IndustrialHardware(HardwareInterface):
         self._done_at = -float("inf")  # time.monotonic() its last point was answered or sent
         self._rest_reports = 0  # STATUS reports since then saying the robot is not in motion
         self._refused_point: tuple[int, float] | None = None  # (sequence, time.monotonic()) of a FAILURE
+        self._trajectory_end: list[float] | None = None  # the last point of the trajectory in hand
         #: JOINT_POSITION reports received when ``position`` was last refreshed (by :meth:`read`).
         self.reports_read = 0
 
@@ -376,6 +377,7 @@ class IndustrialHardware(HardwareInterface):
         executor then follows the measured position, so that nothing moves when it clears)."""
         self._drop_outbox()
         self._unanswered = 0
+        self._trajectory_end = None
         self._stop_answered_at = None
         self._stopping = True
         self._outbox.put(JointTrajPt(STOP_TRAJECTORY, (0.0,) * MAX_JOINTS, 0.0, 0.0))
@@ -434,6 +436,8 @@ class IndustrialHardware(HardwareInterface):
                 self.velocity[:] = [0.0] * len(self.velocity)
         else:
             self.fault = None
+        if self.fault is not None:
+            self._trajectory_end = None  # the executor follows the measured position now
         if not refused:
             self._refusal_reported = False
 
@@ -481,6 +485,7 @@ class IndustrialHardware(HardwareInterface):
             message = self._message(seq, point)
             self._outbox.put((CommType.TOPIC, message) if self.motion == "download" else message)
         self._last_sent = list(points[-1].positions)
+        self._trajectory_end = list(points[-1].positions)
         self._sequence = len(points)
         self._streaming = False
 
@@ -517,7 +522,12 @@ class IndustrialHardware(HardwareInterface):
             return
         self._next_stream_s += self.stream_period_s
         command = self.command_buffer(POSITION)
-        if self._unanswered > 0 or command == self._last_sent or self.fault is not None:
+        end = self._trajectory_end
+        if end is not None:  # a trajectory in hand: the command is the executor's plan of it, not sent
+            if all(abs(q - e) <= 1e-9 for q, e in zip(command, end)):
+                self._trajectory_end = None  # the plan has reached its end
+            return
+        if command == self._last_sent or self.fault is not None:
             self._streaming = False  # a tick without a point: the motion (if any) has ended
             return
         if self._last_sent is None or not self._streaming and self._at_rest():
