@@ -91,6 +91,8 @@ POINT_MESSAGES = ("pt", "full")
 #: STATUS reports saying "not in motion" after the last point was answered before a trajectory counts
 #: as executed (one may have been on its way when the point was answered: the two ports race).
 REST_REPORTS = 2
+#: ``fault`` from a STOP until the controller has answered it and reports the robot at rest.
+STOPPING = "stopping: STOP sent, until the controller reports the robot at rest"
 #: How long a FAILURE reply waits for the STATUS that carries its error code before it is reported [s].
 ERROR_CODE_WAIT_S = 0.1
 
@@ -380,6 +382,7 @@ class IndustrialHardware(HardwareInterface):
         self._trajectory_end = None
         self._stop_answered_at = None
         self._stopping = True
+        self.fault = STOPPING  # at once: nothing more is streamed in this cycle
         self._outbox.put(JointTrajPt(STOP_TRAJECTORY, (0.0,) * MAX_JOINTS, 0.0, 0.0))
         self._last_sent = None  # the next motion starts a new trajectory from where the robot stops
 
@@ -406,8 +409,12 @@ class IndustrialHardware(HardwareInterface):
         self.in_motion = None if status is None or status.in_motion == TRISTATE_UNKNOWN else \
             status.in_motion == TRISTATE_TRUE
         refused = status is not None and status.in_error == TRISTATE_TRUE
-        if self._stopping and self._stopped(status):
+        came_to_rest = self._stopping and self._stopped(status)
+        if came_to_rest:
+            # At rest there. The fault lasts this one more read, so that the executor takes this
+            # position as its hold too: when it clears, the command is the rest and nothing is sent.
             self._stopping = False
+            self._last_sent = list(self.position)
         refused_point = self._refused_point
         if refused_point is not None and (self._status_at > refused_point[1]
                                           or time.monotonic() > refused_point[1] + ERROR_CODE_WAIT_S):
@@ -421,8 +428,8 @@ class IndustrialHardware(HardwareInterface):
             self.fault = f"the controller refused point {refused_point[0]} of the trajectory (FAILURE; {code})"
         elif self._motion_lost is not None:
             self.fault = self._motion_lost
-        elif self._stopping:
-            self.fault = "stopping: STOP sent, until the controller reports the robot at rest"
+        elif self._stopping or came_to_rest:
+            self.fault = STOPPING
         elif refused and not self._refusal_reported:
             # Reported for one read: the trajectory in progress is aborted; the next motion starts a
             # new trajectory (sequence 0), which clears the controller's error.
