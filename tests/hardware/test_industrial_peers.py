@@ -5,6 +5,8 @@ to float32), or, as JOINT_TRAJ_PT_FULL, the goal's own times, positions and velo
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -121,3 +123,52 @@ def test_a_cancel_stops_the_robot_short_of_the_goal(arm) -> None:
     assert np.array(double.positions) == pytest.approx(rest, abs=1e-9)  # it stays where it stopped
     travelled = np.abs(rest - np.array(PRE_POSE)).max()
     assert 0.0 < travelled < 0.3 - 0.05  # it moved, and stopped well short of the goal's 0.3 rad
+
+
+def test_a_failure_reply_aborts_the_goal_at_once_naming_the_point_and_the_error_code() -> None:
+    # A controller that takes only JOINT_TRAJ_PT_FULL, sent JOINT_TRAJ_PT: it answers FAILURE (and
+    # reports STATUS error_code 22); the goal ends long before its 3 s.
+    double = ControllerDouble("full", PRE_POSE, VMAX)
+    hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
+                                  state_port=double.state_port, max_velocities=VMAX, message="pt")
+    hardware.connect()
+    try:
+        session = Session(SCENARIO, hardware=hardware, realtime=True)
+        executor = session.manager.controller("arm7dof_trajectory_controller")
+        handle = executor.submit(smooth_goal(0.1, 3.0), now_s=session.loop.time_s)
+        run_until_done(session, handle, 3.0)
+        assert handle.status is GoalStatus.ABORTED
+        assert handle.result.time_s < 1.0
+        assert "the controller refused point 0 of the trajectory (FAILURE; STATUS error_code 22)" in \
+            handle.result.error_string
+        assert [m.sequence for _, m in double.points] == [0]  # the rest of the goal was not sent
+        assert double.positions == pytest.approx(list(PRE_POSE))  # nothing moved
+    finally:
+        hardware.close()
+        double.close()
+
+
+def test_a_streamed_command_as_full_points_carries_times_from_the_motions_start() -> None:
+    from jointctl.hardware.interface import POSITION
+
+    double = ControllerDouble("full", PRE_POSE, VMAX)
+    hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
+                                  state_port=double.state_port, max_velocities=VMAX, message="full")
+    hardware.connect()
+    try:
+        command = hardware.command_buffer(POSITION)
+        for k in range(60):  # 60 ms of loop time, joint0 moving 0.1 rad/s
+            command[0] = PRE_POSE[0] + 1e-4 * (k + 1)
+            hardware.read()
+            hardware.write()
+            hardware.advance(0.001)
+        deadline = time.monotonic() + 5.0
+        while len(double.points) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        sent = [m for _, m in double.points]
+        assert [m.sequence for m in sent] == [0, 1, 2]  # one every 20 ms, from a new trajectory
+        assert [m.time for m in sent] == pytest.approx([0.02, 0.04, 0.06], rel=1e-6)
+        assert [m.positions[0] for m in sent] == pytest.approx([1e-4, 21e-4, 41e-4], abs=1e-7)
+    finally:
+        hardware.close()
+        double.close()

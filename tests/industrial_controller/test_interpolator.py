@@ -370,3 +370,61 @@ def test_continuous_joints_have_no_range_and_a_missing_velocity_is_unknown() -> 
     interp.push(Point((30.0, 100.0), 1.0, 0.0))  # the wheel's 3 rad/s sets T = 10 s
     q, _ = run(interp, 5000)
     assert q == pytest.approx([15.0, 50.0], abs=1e-9)
+
+
+# -- points with velocities (JOINT_TRAJ_PT_FULL): cubic segments -------------------------------------------
+
+def test_a_point_with_velocities_is_reached_along_the_hermite_cubic_with_its_velocity():
+    from scipy.interpolate import CubicHermiteSpline
+
+    interp = Interpolator(LIMITS, [0.0, 0.0])
+    interp.push(Point((0.4, 0.2), 1.0, 1.0, velocities=(0.3, 0.0)))
+    interp.push(Point((0.6, 0.2), 1.0, 1.0, velocities=(0.0, 0.0)))
+    first = CubicHermiteSpline([0.0, 1.0], [0.0, 0.4], [0.0, 0.3])  # joint 0, from rest
+    second = CubicHermiteSpline([1.0, 2.0], [0.4, 0.6], [0.3, 0.0])
+    for t, spline in ((0.25, first), (0.5, first), (1.5, second)):
+        interp_t = Interpolator(LIMITS, [0.0, 0.0])
+        interp_t.push(Point((0.4, 0.2), 1.0, 1.0, velocities=(0.3, 0.0)))
+        interp_t.push(Point((0.6, 0.2), 1.0, 1.0, velocities=(0.0, 0.0)))
+        q, v = run(interp_t, round(t / DT))
+        assert q[0] == pytest.approx(float(spline(t)), abs=1e-9)
+        assert v[0] == pytest.approx(float(spline(t, 1)), abs=1e-9)
+        assert interp_t.acceleration[0] == pytest.approx(float(spline(t, 2)), abs=1e-6)
+    q, v = run(interp, 1000)
+    assert q == pytest.approx([0.4, 0.2], abs=1e-12) and v == pytest.approx([0.3, 0.0])  # the point, its velocity, at 1 s
+    q, v = run(interp, 1000)
+    assert q == [0.6, 0.2] and v == [0.0, 0.0] and not interp.in_motion
+
+
+def test_a_cubic_that_ends_moving_with_nothing_after_it_brakes_at_the_deceleration():
+    interp = Interpolator(LIMITS, [0.0, 0.0])
+    interp.push(Point((0.2, 0.0), 1.0, 0.5, velocities=(1.0, 0.0)))
+    run(interp, 500)
+    assert interp.velocity[0] == pytest.approx(1.0)
+    q, v = run(interp, 50)  # braking from 1 rad/s at 10 rad/s²: 0.05 m later at 0.5 rad/s
+    assert v[0] == pytest.approx(0.5, abs=1e-9) and interp.acceleration[0] == pytest.approx(-10.0)
+    q, v = run(interp, 100)
+    assert v[0] == 0.0 and q[0] == pytest.approx(0.2 + 1.0**2 / (2 * 10.0), abs=1e-9)  # v²/2a beyond the point
+
+
+def test_a_stop_feeds_the_braking_deceleration_forward():
+    interp = Interpolator(LIMITS, [0.0, 0.0])
+    interp.push(Point((0.0, 5.0), 1.0, 0.0))  # joint 1 at its 1 rad/s
+    run(interp, 500)
+    interp.stop()
+    run(interp, 10)
+    assert interp.acceleration == [0.0, pytest.approx(-4.0)]  # joint 1's deceleration, opposing its motion
+    run(interp, 300)  # 1 rad/s at 4 rad/s²: at rest after 0.25 s
+    assert interp.acceleration == [0.0, 0.0] and interp.velocity == [0.0, 0.0]
+
+
+@pytest.mark.parametrize(("velocities", "field", "code"), [
+    ((2.5, 0.0), "velocities[0]", ERROR_BAD_VELOCITY),  # above joint 0's 2 rad/s
+    ((0.0, math.nan), "velocities[1]", ERROR_NOT_FINITE),
+    ((0.0,), "velocities", ERROR_JOINT_COUNT),
+])
+def test_bad_point_velocities_are_refused_naming_the_joint(velocities, field, code):
+    interp = Interpolator(LIMITS, [0.0, 0.0])
+    with pytest.raises(RefusedPoint) as info:
+        interp.push(Point((0.1, 0.0), 1.0, 1.0, velocities=velocities))
+    assert (info.value.field, info.value.error_code) == (field, code) and len(interp) == 0

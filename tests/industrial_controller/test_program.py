@@ -328,3 +328,49 @@ def test_stops_and_refusals_are_logged_one_line_each_naming_field_and_value() ->
     program.handle(point(STOP_TRAJECTORY, ()))
     assert lines == ["refused a point (error_code 1): positions[1]: outside the joint's range [-2, 2] (got 7.5); "
                      "the trajectory is stopped", "STOP: decelerating to rest, queue cleared"]
+
+
+# -- JOINT_TRAJ_PT_FULL: points by their time ---------------------------------------------------------------
+
+def full_point(seq: int, time_s: float, positions, velocities=None, fields=None):
+    from jointctl.wire.simple_message import VALID_POSITION, VALID_TIME, VALID_VELOCITY, JointTrajPtFull
+
+    if fields is None:
+        fields = VALID_TIME | VALID_POSITION | (VALID_VELOCITY if velocities is not None else 0)
+    message = JointTrajPtFull(0, seq, fields, time_s, tuple(positions), tuple(velocities or (0.0, 0.0)), (0.0, 0.0))
+    return parse_packet(encode(message, REQUEST))
+
+
+def test_full_points_are_reached_at_their_times_from_the_trajectorys_start():
+    F32 = 1e-7  # positions and times went through float32
+    program = ControllerProgram(LIMITS, [0.0, 0.0])
+    for seq, t, q in ((0, 1.0, (0.2, 0.1)), (1, 3.0, (0.6, 0.1))):  # 1 s, then 2 s: both within the limits
+        reply = program.handle(full_point(seq, t, q))
+        assert reply_code(reply) == ReplyCode.SUCCESS
+        assert parse_packet(reply).msg_type == 14  # the answer is of the request's type
+    q, _ = run(program, 1.0)
+    assert q == pytest.approx([0.2, 0.1], abs=F32)
+    q, v = run(program, 1.0)
+    assert q[0] == pytest.approx(0.4, abs=F32) and v[0] == pytest.approx(0.2, rel=1e-6)  # half of 0.4 rad in 2 s
+    q, v = run(program, 1.0)
+    assert q == pytest.approx([0.6, 0.1], abs=F32) and v == [0.0, 0.0]
+    # a new trajectory counts its times from its own start again
+    program.handle(full_point(0, 0.5, (0.5, 0.1)))
+    q, _ = run(program, 0.5)
+    assert q == pytest.approx([0.5, 0.1], abs=F32)
+
+
+def test_a_full_point_without_its_time_is_refused_and_moves_nothing():
+    from jointctl.wire.simple_message import VALID_POSITION
+
+    program = ControllerProgram(LIMITS, [0.0, 0.0])
+    assert reply_code(program.handle(full_point(0, 1.0, (0.5, 0.0), fields=VALID_POSITION))) == ReplyCode.FAILURE
+    assert program.error_code == ERROR_MALFORMED_POINT
+    assert run(program, 1.2)[0] == [0.0, 0.0]
+
+
+def test_a_speed_fraction_of_zero_is_refused_as_a_real_controller_does():
+    program = ControllerProgram(LIMITS, [0.0, 0.0])
+    assert reply_code(program.handle(point(0, (0.5, 0.0), 1.0, velocity=0.0))) == ReplyCode.FAILURE
+    assert program.error_code == ERROR_BAD_VELOCITY
+    assert run(program, 1.2)[0] == [0.0, 0.0]

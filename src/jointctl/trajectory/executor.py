@@ -60,6 +60,11 @@ __all__ = ["BLOCK_CYCLES", "INTERPOLATIONS", "GoalHandle", "GoalResult", "GoalSt
            "TrajectoryFeedback"]
 
 
+#: A goal handed whole to the hardware keeps its own times when it starts less than this late [s]
+#: (its stamp a few cycles past: the controller absorbs it); later, what is left of it is timed from now.
+LATE_START_S = 0.1
+
+
 class TrajectoryExecutor(Controller):
     """Interpolates goals into references for one position controller per joint."""
 
@@ -427,8 +432,9 @@ class TrajectoryExecutor(Controller):
         return not self.downstream and self.hardware.takes_trajectories
 
     def _hand_over(self, handle: GoalHandle, time_s: float, period_s: float) -> None:
-        """Hand the goal to hardware that executes whole trajectories: its own points (times from now;
-        those already past left out), or, when the hardware asks for a sampling period, the goal as
+        """Hand the goal to hardware that executes whole trajectories: its own points (with their own
+        times; of a goal stamped in the past, those still to come, from now), or, when the hardware asks
+        for a sampling period, the goal as
         planned from this cycle sampled every period and at its end. The executor runs its own copy
         of the plan as usual, for feedback and the result."""
         hw = self.hardware
@@ -437,8 +443,12 @@ class TrajectoryExecutor(Controller):
         hw_index = [self.hw_index[i] for i in goal.joint_indices]
         if step is None:
             offset = goal.start_time_s - time_s
-            keep = [k for k, t in enumerate(goal.times_s) if offset + float(t) > 1e-9] or [len(goal.times_s) - 1]
-            times = [max(offset + float(goal.times_s[k]), period_s) for k in keep]
+            if offset > -LATE_START_S:  # the goal's own times, as ROS-I's client sends them
+                keep = list(range(len(goal.times_s)))
+                times = [float(t) for t in goal.times_s]
+            else:  # stamped well in the past: what is left of it, from now
+                keep = [k for k, t in enumerate(goal.times_s) if offset + float(t) > 1e-9] or [len(goal.times_s) - 1]
+                times = [max(offset + float(goal.times_s[k]), period_s) for k in keep]
             rows = lambda array: None if array is None else [array[k] for k in keep]  # noqa: E731
             hw.execute_trajectory(hw_index, times, rows(goal.positions), rows(goal.velocities),
                                   rows(goal.accelerations))
