@@ -15,6 +15,15 @@ and in-process, both as the chapter's streamer does it (linear points at 50 Hz, 
 the baseline) and with jointctl's defaults (cubic at 1 kHz, model feed-forward); RMS over the
 motion of the executor's desired minus the measured position as the executor sees it, all joints.
 
+*Stop*: ``jointctl controller arm7dof``, every joint at its URDF speed limit (one point, speed
+fraction 1), STOP sent 1.5 s into it: time from the STOP until the reported joints move less than
+1e-4 rad in the next 0.5 s (target <= 0.5 s, an industrial controller's category-2 stop).
+*Goal completion*: a 4 s goal of the arm (10 points of a smoothstep, with velocities, within the
+limits) through IndustrialHardware against the controllers users own (tests/hardware/
+controller_doubles.py): completion (the goal's SUCCEEDED) over the goal's duration; target <= 1.05
+against the one reaching points over their durations (10 ms tick a point) and the one taking FULL
+points by time. The same goal resampled at 50 Hz against the first, for comparison.
+
 Needs ROS 1 (make ros) for the latency only; the rest runs without it.
 """
 
@@ -244,8 +253,10 @@ def _tracking() -> list[Result]:
     process, motion, state = _controller("arm7dof")
     try:
         scenario = scenario_for_robot("arm7dof", "industrial")
+        # The chapter's timing gives no velocities: a speed fraction of 1 leaves the timing to the points'
+        # durations (ROS-I's 10 % default would make the controller take 5x as long).
         hardware = IndustrialHardware([f"joint{k}" for k in range(7)], robot_ip="127.0.0.1", motion_port=motion,
-                                      state_port=state)
+                                      state_port=state, default_speed=1.0)
         hardware.connect()
         bridged = Session(scenario, hardware=hardware, realtime=True)
         rms_bridge = _tracking_rms(bridged, bridged.manager.controller("arm7dof_trajectory_controller"), 15.0)
@@ -263,8 +274,97 @@ def _tracking() -> list[Result]:
     ]
 
 
+def _stop_time() -> list[Result]:
+    from jointctl.hardware.industrial import IndustrialHardware
+    from jointctl.wire.simple_message import JointTrajPt
+
+    speeds = [0.2, 0.2, 0.3, 0.3, 0.4, 0.5, 0.4]  # the arm's URDF limits [rad/s]
+    process, motion, state = _controller("arm7dof")
+    try:
+        hardware = IndustrialHardware([f"joint{k}" for k in range(7)], robot_ip="127.0.0.1", motion_port=motion,
+                                      state_port=state)
+        hardware.connect()
+        start = list(hardware.position)
+        target = [q + 3.0 * v for q, v in zip(start, speeds)]  # 3 s at full speed on every joint
+        hardware._outbox.put(JointTrajPt(0, tuple(target) + (0.0,) * 3, 1.0, 3.0))
+        time.sleep(1.5)
+        stopped_at = time.monotonic()
+        hardware.stop_motion()
+        samples = []
+        while time.monotonic() < stopped_at + 3.0:
+            hardware.read()
+            samples.append((time.monotonic() - stopped_at, list(hardware.position)))
+            time.sleep(0.005)
+        hardware.close()
+    finally:
+        _stop(process)
+    still = None
+    for k, (t, q) in enumerate(samples):
+        later = [p for s, p in samples[k:] if s <= t + 0.5]
+        if samples[-1][0] >= t + 0.5 and max(max(abs(a - b) for a, b in zip(p, q)) for p in later) < 1e-4:
+            still = t
+            break
+    value = still if still is not None else math.inf
+    return [Result("industrial", "STOP at the arm's full speed -> still (< 1e-4 rad / 0.5 s)", value, "s",
+                   "<= 0.5 s", value <= 0.5)]
+
+
+def _completion() -> list[Result]:
+    import numpy as np
+
+    from jointctl.hardware.industrial import IndustrialHardware
+    from jointctl.model.loader import load_robot_model
+    from jointctl.scenario.session import Session
+    from jointctl.scenario.spec import scenario_for_robot
+    from jointctl.trajectory.messages import JointTrajectory, JointTrajectoryPoint
+    from tests.hardware.controller_doubles import ControllerDouble
+
+    scenario = scenario_for_robot("arm7dof", "industrial")
+    robot = load_robot_model(scenario.robot.description)
+    joints = tuple(j.name for j in robot.movable_joints)
+    vmax = tuple(j.range_and_speed()[2] for j in robot.movable_joints)
+    duration, delta = 4.0, 0.3  # peak speed 1.5 x 0.3 / 4 = 0.11 rad/s, within every limit
+    times = duration * np.arange(1, 11) / 10
+    tau = times / duration
+    goal = JointTrajectory(joints, tuple(
+        JointTrajectoryPoint(positions=tuple(q + delta * (3 * x**2 - 2 * x**3) for q in PRE_POSE),
+                             velocities=(delta * 6 * x * (1 - x) / duration,) * 7, time_from_start_s=float(t))
+        for t, x in zip(times, tau)))
+
+    def complete(kind: str, **options) -> float:
+        double = ControllerDouble(kind, PRE_POSE, vmax)
+        hardware = IndustrialHardware(joints, robot_ip="127.0.0.1", motion_port=double.motion_port,
+                                      state_port=double.state_port, max_velocities=vmax, **options)
+        try:
+            hardware.connect()
+            session = Session(scenario, hardware=hardware, realtime=True)
+            executor = session.manager.controller("arm7dof_trajectory_controller")
+            handle = executor.submit(goal, now_s=session.loop.time_s)
+            session.loop.add_input(lambda t: session.loop.request_stop() if handle.done else None)
+            session.run(4 * duration)
+            assert handle.result is not None and handle.result.status.name == "SUCCEEDED", handle.result
+            return handle.result.time_s / duration
+        finally:
+            hardware.close()
+            double.close()
+
+    by_duration, by_time = complete("duration"), complete("full", message="full")
+    by_speed = complete("speed")
+    resampled = complete("duration", points="resampled")
+    return [
+        Result("industrial", "goal completion / duration, controller by durations (10 ms tick a point)", by_duration,
+               "x", "<= 1.05", by_duration <= 1.05),
+        Result("industrial", "goal completion / duration, controller taking FULL points by time", by_time, "x",
+               "<= 1.05", by_time <= 1.05),
+        Result("industrial", "goal completion / duration, controller by speed fraction (last point at 10 %)",
+               by_speed, "x"),
+        Result("industrial", "goal completion / duration, resampled at 50 Hz, controller by durations", resampled,
+               "x"),
+    ]
+
+
 def run() -> list[Result]:
-    return _throughput() + _latency() + _tracking()
+    return _throughput() + _latency() + _tracking() + _stop_time() + _completion()
 
 
 if __name__ == "__main__":

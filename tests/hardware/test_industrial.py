@@ -281,7 +281,7 @@ def test_state_is_read_as_reported_and_the_command_starts_there(peer) -> None:
 
 
 def test_a_motion_streams_points_at_the_stream_rate_from_sequence_zero(peer) -> None:
-    hw = connected(peer, stream_rate_hz=50.0)
+    hw = connected(peer, stream_rate_hz=50.0, max_velocities=(2.0, 1.0))
     try:
         command = hw.command_buffer(POSITION)
         for k in range(100):  # 100 ms of loop time, the command moving every cycle
@@ -289,7 +289,11 @@ def test_a_motion_streams_points_at_the_stream_rate_from_sequence_zero(peer) -> 
             cycle(hw)
         wait_for(lambda: len(peer.points) == 5, "five points")
         assert [p.sequence for p in peer.points] == [0, 1, 2, 3, 4]  # one every 20 ms, a new trajectory
-        assert all(p.duration == pytest.approx(0.02) and p.velocity == 0.0 for p in peer.points)
+        assert all(p.duration == pytest.approx(0.02) for p in peer.points)
+        # ROS-I's speed fraction of each point's velocity, Δq / period = 0.02 m / 0.02 s = 1 m/s on joint a,
+        # against its limit of 2: 0.5 (the first point moves the command from where the robot is)
+        assert [p.velocity for p in peer.points[1:]] == pytest.approx([0.5] * 4, rel=1e-5)
+        assert 0 < peer.points[0].velocity <= 1.0
         # Each point carries the command of the cycle it was sent in (t = 0, 20, 40... ms).
         assert [p.positions[0] for p in peer.points] == pytest.approx([0.1 + 0.001 * k for k in (0, 20, 40, 60, 80)],
                                                                        abs=1e-6)

@@ -44,7 +44,7 @@ DT = 0.001
 REQUEST, TOPIC = CommType.SERVICE_REQUEST, CommType.TOPIC
 
 
-def point(seq: int, positions, duration: float = 0.0, velocity: float = 0.0, *, comm=REQUEST,
+def point(seq: int, positions, duration: float = 0.0, velocity: float = 1.0, *, comm=REQUEST,
           big_endian: bool = False) -> Packet:
     return parse_packet(encode(JointTrajPt(seq, tuple(positions), velocity, duration), comm,
                                big_endian=big_endian), big_endian=big_endian)
@@ -59,7 +59,7 @@ def reply_code(reply: bytes, big_endian: bool = False) -> int:
 def run(program: ControllerProgram, seconds: float) -> tuple[list[float], list[float]]:
     q = v = None
     for _ in range(round(seconds / DT)):
-        q, v = program.cycle(DT)
+        q, v, _ = program.cycle(DT)
     return q, v
 
 
@@ -212,7 +212,7 @@ def test_a_refusal_while_moving_brakes_instead_of_halting() -> None:
     _, v = run(program, 0.3)
     assert v[0] == pytest.approx(1.0)
     program.handle(point(2, (math.nan, 0.0), 0.1))
-    _, v = program.cycle(DT)
+    _, v, _ = program.cycle(DT)
     assert v[0] == pytest.approx(1.0 - 5.0 * DT)  # decelerating, not stopped dead
     q, v = run(program, 1.0)
     assert v == [0.0, 0.0] and q[0] == pytest.approx(0.3 + DT + 0.1, abs=2e-3)  # v²/2a = 0.1 rad
@@ -268,7 +268,7 @@ def test_big_endian_requests_get_big_endian_replies() -> None:
 def test_a_connection_answers_packets_split_anywhere_and_skips_a_bad_header() -> None:
     connection = MotionConnection(ControllerProgram(LIMITS, [0.0, 0.0]))
     bad_header = struct.pack("<4i", 12, 11, 7, 0)  # comm_type 7
-    stream = encode(Ping(), REQUEST) + bad_header + encode(JointTrajPt(0, (0.0, 0.0), 0.0, 0.0), REQUEST)
+    stream = encode(Ping(), REQUEST) + bad_header + encode(JointTrajPt(0, (0.0, 0.0), 1.0, 0.0), REQUEST)
     replies = []
     for k in range(0, len(stream), 5):
         replies += connection.feed(stream[k:k + 5])
@@ -314,8 +314,8 @@ def test_no_byte_stream_of_refused_points_and_garbage_raises_or_moves_the_robot(
     assert run(program, 0.05)[0] == [0.25, -0.5] and not program.in_motion
     program.connection_lost()
     fresh = MotionConnection(program)
-    replies = fresh.feed(encode(JointTrajPt(0, (0.25, -0.5), 0.0, 0.0), REQUEST)
-                         + encode(JointTrajPt(1, (0.0, 0.0), 0.0, 1.0), REQUEST))
+    replies = fresh.feed(encode(JointTrajPt(0, (0.25, -0.5), 1.0, 0.0), REQUEST)
+                         + encode(JointTrajPt(1, (0.0, 0.0), 1.0, 1.0), REQUEST))
     assert [reply_code(r) for r in replies] == [ReplyCode.SUCCESS, ReplyCode.SUCCESS]
     assert run(program, 1.1)[0] == pytest.approx([0.0, 0.0], abs=1e-6)
 
@@ -328,3 +328,49 @@ def test_stops_and_refusals_are_logged_one_line_each_naming_field_and_value() ->
     program.handle(point(STOP_TRAJECTORY, ()))
     assert lines == ["refused a point (error_code 1): positions[1]: outside the joint's range [-2, 2] (got 7.5); "
                      "the trajectory is stopped", "STOP: decelerating to rest, queue cleared"]
+
+
+# -- JOINT_TRAJ_PT_FULL: points by their time ---------------------------------------------------------------
+
+def full_point(seq: int, time_s: float, positions, velocities=None, fields=None):
+    from jointctl.wire.simple_message import VALID_POSITION, VALID_TIME, VALID_VELOCITY, JointTrajPtFull
+
+    if fields is None:
+        fields = VALID_TIME | VALID_POSITION | (VALID_VELOCITY if velocities is not None else 0)
+    message = JointTrajPtFull(0, seq, fields, time_s, tuple(positions), tuple(velocities or (0.0, 0.0)), (0.0, 0.0))
+    return parse_packet(encode(message, REQUEST))
+
+
+def test_full_points_are_reached_at_their_times_from_the_trajectorys_start():
+    F32 = 1e-7  # positions and times went through float32
+    program = ControllerProgram(LIMITS, [0.0, 0.0])
+    for seq, t, q in ((0, 1.0, (0.2, 0.1)), (1, 3.0, (0.6, 0.1))):  # 1 s, then 2 s: both within the limits
+        reply = program.handle(full_point(seq, t, q))
+        assert reply_code(reply) == ReplyCode.SUCCESS
+        assert parse_packet(reply).msg_type == 14  # the answer is of the request's type
+    q, _ = run(program, 1.0)
+    assert q == pytest.approx([0.2, 0.1], abs=F32)
+    q, v = run(program, 1.0)
+    assert q[0] == pytest.approx(0.4, abs=F32) and v[0] == pytest.approx(0.2, rel=1e-6)  # half of 0.4 rad in 2 s
+    q, v = run(program, 1.0)
+    assert q == pytest.approx([0.6, 0.1], abs=F32) and v == [0.0, 0.0]
+    # a new trajectory counts its times from its own start again
+    program.handle(full_point(0, 0.5, (0.5, 0.1)))
+    q, _ = run(program, 0.5)
+    assert q == pytest.approx([0.5, 0.1], abs=F32)
+
+
+def test_a_full_point_without_its_time_is_refused_and_moves_nothing():
+    from jointctl.wire.simple_message import VALID_POSITION
+
+    program = ControllerProgram(LIMITS, [0.0, 0.0])
+    assert reply_code(program.handle(full_point(0, 1.0, (0.5, 0.0), fields=VALID_POSITION))) == ReplyCode.FAILURE
+    assert program.error_code == ERROR_MALFORMED_POINT
+    assert run(program, 1.2)[0] == [0.0, 0.0]
+
+
+def test_a_speed_fraction_of_zero_is_refused_as_a_real_controller_does():
+    program = ControllerProgram(LIMITS, [0.0, 0.0])
+    assert reply_code(program.handle(point(0, (0.5, 0.0), 1.0, velocity=0.0))) == ReplyCode.FAILURE
+    assert program.error_code == ERROR_BAD_VELOCITY
+    assert run(program, 1.2)[0] == [0.0, 0.0]

@@ -104,7 +104,10 @@ def test_the_arms_pre_pose_through_the_bridge_ends_where_the_in_process_executor
     reference = in_process_pre_pose()
     assert reference == pytest.approx(PRE_POSE, abs=0.01)  # the in-process run itself reached it
     _, motion, state = controllers(ros_env, "arm7dof")
-    serve_against(serve, "arm7dof", motion, state)
+    # The goal has no velocities: ROS-I's client (and so jointctl) would send its 10 % default speed
+    # fraction and the controller would take 67 s (joint3's 2 rad at 0.03 rad/s); a speed fraction of 1
+    # leaves the timing to the goal's durations, as the in-process executor's.
+    serve_against(serve, "arm7dof", motion, state, "--default-speed", "1.0")
     # The chapter's timing for zeros -> pre-pose: joint3's 2 rad at half its 0.3 rad/s: 13.33 s.
     done = follow(ros_env, ARM_JOINTS, [[0.02, [0.0] * 7], [13.35, PRE_POSE]])
     assert done["state"] == "SUCCEEDED", done  # only once the controller said the robot is at rest

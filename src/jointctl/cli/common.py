@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 
 from jointctl.errors import JointCtlError
+from jointctl.hardware.industrial import POINT_MESSAGES, STREAM_POINTS
+from jointctl.hardware.ros_industrial_points import DEFAULT_SPEED_FRACTION
 
 
 def positive_speed(args: argparse.Namespace) -> None:
@@ -43,10 +45,24 @@ def industrial_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--state-port", type=int, default=11002, help="the controller's state port (default 11002)")
     parser.add_argument("--big-endian", action="store_true", help="the controller speaks big-endian (the _bswap drivers)")
     parser.add_argument("--stream-rate-hz", type=float, default=50.0,
-                        help="points streamed to the controller per second (default 50)")
+                        help="with --points resampled, and outside goals: points streamed to the controller per "
+                             "second (default 50)")
     parser.add_argument("--motion", choices=("streaming", "download"), default="streaming",
-                        help="the controller's motion handshake: points streamed as a goal runs (default), or "
-                             "each goal downloaded whole and executed after its last point")
+                        help="the controller's motion handshake: each point a request answered when the "
+                             "controller has room (default), or each goal downloaded whole and executed after "
+                             "its last point")
+    parser.add_argument("--stream-points", choices=STREAM_POINTS, default=None,
+                        help="what a goal becomes on the wire: its own points with ROS-I's speed fractions and "
+                             "durations ('goal', the default), or the goal resampled every stream period "
+                             "('resampled', as the chapter's streamer; for controllers that want a dense stream). "
+                             "Default: the robot's robot.yaml industrial.points, else goal")
+    parser.add_argument("--message", choices=POINT_MESSAGES, default=None,
+                        help="the point message: JOINT_TRAJ_PT ('pt', speed fraction and duration, as ROS-I's "
+                             "client) or JOINT_TRAJ_PT_FULL ('full', time, positions, velocities, accelerations). "
+                             "Default: robot.yaml industrial.message, else pt")
+    parser.add_argument("--default-speed", type=float, default=None,
+                        help="the speed fraction of a point without velocities (ROS-I's default_vel_ratio; "
+                             "default: robot.yaml industrial.default_speed, else 0.1)")
 
 
 def live_target_arguments(parser: argparse.ArgumentParser) -> None:
@@ -72,16 +88,31 @@ def live_scenario(args: argparse.Namespace):
 
 
 def industrial_hardware(args: argparse.Namespace, scenario):
-    """The robot controller behind ``serve --hardware industrial``, connected (or a clear error)."""
+    """The robot controller behind ``serve --hardware industrial``, connected (or a clear error). What
+    the command line leaves open comes from the robot's ``robot.yaml`` (``industrial: {points, message,
+    default_speed}``), else from ROS-I's client's defaults."""
     from jointctl.hardware.industrial import IndustrialHardware
     from jointctl.model.loader import load_robot_model
 
     if not args.robot_ip:
         raise JointCtlError("is required with --hardware industrial", field="--robot-ip")
     robot = load_robot_model(scenario.robot.description)
-    hardware = IndustrialHardware([j.name for j in robot.movable_joints], robot_ip=args.robot_ip,
+    joints = robot.movable_joints
+    defaults = scenario.robot.extras.get("industrial") or {}
+    if not isinstance(defaults, dict) or set(defaults) - {"points", "message", "default_speed"}:
+        raise JointCtlError("must be a mapping of points, message and default_speed",
+                            source=str(scenario.robot.folder / "robot.yaml"), field="industrial", value=defaults)
+
+    def pick(flag: str, key: str, fallback):
+        given = getattr(args, flag)
+        return given if given is not None else defaults.get(key, fallback)
+
+    hardware = IndustrialHardware([j.name for j in joints], robot_ip=args.robot_ip,
                                   motion_port=args.motion_port, state_port=args.state_port,
                                   big_endian=args.big_endian, stream_rate_hz=args.stream_rate_hz,
-                                  motion=args.motion)
+                                  motion=args.motion, points=pick("stream_points", "points", "goal"),
+                                  message=pick("message", "message", "pt"),
+                                  default_speed=pick("default_speed", "default_speed", DEFAULT_SPEED_FRACTION),
+                                  max_velocities=[j.range_and_speed()[2] for j in joints])
     hardware.connect()
     return hardware

@@ -12,18 +12,23 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   ``in_motion`` as a bool (None when unknown): a goal succeeds only once the controller says the
   robot is not in motion, as ROS-I's action server requires.
 - **Commands**: each joint has a ``position`` command interface only (the controller servos its
-  joints; there is no PID on this side). :meth:`write` streams the position command on the MOTION
-  port (11000) every ``1 / stream_rate_hz`` of loop time, when it changed, as a JOINT_TRAJ_PT
-  SERVICE_REQUEST whose ``duration`` is the stream period and ``velocity`` 0 (no speed fraction:
-  the controller's joint limits apply), in ROS-I's streaming handshake: a sender thread sends one
-  point, waits for the reply (the controller's flow control) and sends the next. A motion that
-  starts with the robot at rest (STATUS ``in_motion`` 0, nothing streamed at the last tick)
-  begins with sequence number 0, which tells the controller a new trajectory begins; every other
-  point continues the numbering, so the controller queues it behind the ones it has.
-  With ``motion="download"`` nothing is streamed: a trajectory executor hands each goal to
-  :meth:`download_motion`, sent in ROS-I's download handshake (TOPIC points from sequence -1 to -3;
-  the controller executes after the last). :meth:`stop_motion` sends STOP (-4); ``fault`` then
-  says "stopping" until the controller has answered and reports the robot at rest.
+  joints; there is no PID on this side). The hardware *takes trajectories*: a trajectory executor
+  hands it each goal (:meth:`execute_trajectory`), sent as ROS-I's client sends it
+  (``hardware/ros_industrial_points.py``): per point the speed fraction of the critical joint
+  (``|v_i| / v_max,i`` from the goal's velocities and the URDF's limits ``max_velocities``;
+  ``default_speed``, 0.1, when there are none) and the duration since the previous point. Which
+  points: the goal's own (``points="goal"``, ROS-I's way) or the goal resampled every stream period
+  (``points="resampled"``, the chapter's streamer's). Which message: JOINT_TRAJ_PT (``message="pt"``)
+  or JOINT_TRAJ_PT_FULL (``"full"``: time, positions, velocities, accelerations). In the streaming
+  handshake each point is a SERVICE_REQUEST with sequence 0, 1, 2... (0: a new trajectory), sent by a
+  thread once the previous one was answered (the controller's flow control); a FAILURE answer
+  abandons the rest and is a fault naming the point and the STATUS error code. In the download
+  handshake (``motion="download"``) every point is a TOPIC from sequence -1 to -3, executed by the
+  controller after the last. :attr:`executing` stays True until every point was answered (or sent)
+  and the controller reported the robot at rest. Outside a goal, :meth:`write` streams the position
+  command every ``1 / stream_rate_hz`` of loop time when it changed (a jog, a bode sweep), with the
+  stream period as duration. :meth:`stop_motion` sends STOP (-4); ``fault`` then says "stopping"
+  until the controller has answered and reports the robot at rest.
 - **Faults**: ``fault`` says why the robot cannot be commanded now (``None`` when it can): the
   state stale for ``stale_after_s`` (ROS-I's action server aborts after 1 s without feedback), or
   a connection lost; and, for one :meth:`read`, that the controller refused a point (STATUS
@@ -39,6 +44,7 @@ little-endian unless ``big_endian`` (the ``_bswap`` drivers). Joint ``i`` of a p
 
 from __future__ import annotations
 
+import math
 import queue
 import select
 import socket
@@ -48,6 +54,7 @@ from collections.abc import Sequence
 
 from jointctl.errors import JointCtlError, MalformedPacket
 from jointctl.hardware.interface import POSITION, HardwareInterface
+from jointctl.hardware.ros_industrial_points import DEFAULT_SPEED_FRACTION, WirePoint, speed_fraction, wire_points
 from jointctl.wire.simple_message import (
     END_TRAJECTORY,
     MAX_JOINTS,
@@ -55,11 +62,17 @@ from jointctl.wire.simple_message import (
     STOP_TRAJECTORY,
     TRISTATE_TRUE,
     TRISTATE_UNKNOWN,
+    VALID_ACCELERATION,
+    VALID_POSITION,
+    VALID_TIME,
+    VALID_VELOCITY,
     CommType,
     JointPosition,
     JointTrajPt,
+    JointTrajPtFull,
     MsgType,
     PacketReader,
+    ReplyCode,
     RobotStatus,
     decode,
     encode,
@@ -69,6 +82,19 @@ MOTION_PORT = 11000
 STATE_PORT = 11002
 #: The motion handshakes of ROS-I's motion interfaces.
 MOTION_HANDSHAKES = ("streaming", "download")
+#: Which points a goal becomes: its own (as ROS-I's client sends them), or the goal resampled every
+#: stream period (as the chapter's arm streamer sends them, for controllers that want a dense stream).
+STREAM_POINTS = ("goal", "resampled")
+#: The point message: JOINT_TRAJ_PT (speed fraction and duration, as ROS-I's client sends) or
+#: JOINT_TRAJ_PT_FULL (time from the trajectory's start, positions, velocities, accelerations).
+POINT_MESSAGES = ("pt", "full")
+#: STATUS reports saying "not in motion" after the last point was answered before a trajectory counts
+#: as executed (one may have been on its way when the point was answered: the two ports race).
+REST_REPORTS = 2
+#: ``fault`` from a STOP until the controller has answered it and reports the robot at rest.
+STOPPING = "stopping: STOP sent, until the controller reports the robot at rest"
+#: How long a FAILURE reply waits for the STATUS that carries its error code before it is reported [s].
+ERROR_CODE_WAIT_S = 0.1
 
 
 class HardwareUnreachable(JointCtlError):
@@ -83,23 +109,42 @@ class IndustrialHardware(HardwareInterface):
     def __init__(self, joint_names: Sequence[str], *, robot_ip: str, motion_port: int = MOTION_PORT,
                  state_port: int = STATE_PORT, big_endian: bool = False, stream_rate_hz: float = 50.0,
                  stale_after_s: float = 1.0, connect_timeout_s: float = 2.0, retry_s: float = 0.5,
-                 motion: str = "streaming") -> None:
+                 motion: str = "streaming", points: str = "goal", message: str = "pt",
+                 max_velocities: Sequence[float] | None = None,
+                 default_speed: float = DEFAULT_SPEED_FRACTION) -> None:
         super().__init__(tuple(joint_names))
         if not 0 < len(self.joint_names) <= MAX_JOINTS:
             raise JointCtlError(f"simple_message carries 1 to {MAX_JOINTS} joints", field="joints",
                                 value=list(self.joint_names))
         if motion not in MOTION_HANDSHAKES:
             raise JointCtlError(f"must be one of {', '.join(MOTION_HANDSHAKES)}", field="motion", value=motion)
-        #: The motion handshake: "streaming" (points streamed as the loop runs) or "download" (whole
-        #: trajectories, from a trajectory executor's goals, executed by the controller after their end).
+        if points not in STREAM_POINTS:
+            raise JointCtlError(f"must be one of {', '.join(STREAM_POINTS)}", field="points", value=points)
+        if message not in POINT_MESSAGES:
+            raise JointCtlError(f"must be one of {', '.join(POINT_MESSAGES)}", field="message", value=message)
+        if not 0 < default_speed <= 1:
+            raise JointCtlError("must be a fraction of the maximum speed in (0, 1]", field="default_speed",
+                                value=default_speed)
+        #: The motion handshake: "streaming" (each point a request, answered when the controller has
+        #: room) or "download" (every point a topic, executed by the controller after the last).
         self.motion = motion
-        self.takes_trajectories = motion == "download"
+        self.points = points
+        self.message = message
+        self.default_speed = default_speed
+        #: Each joint's speed limit [rad/s or m/s] for the speed fractions (the URDF's; inf: unknown).
+        self.max_velocities = tuple(float(v) for v in max_velocities) if max_velocities is not None else \
+            (math.inf,) * len(self.joint_names)
+        if len(self.max_velocities) != len(self.joint_names):
+            raise JointCtlError(f"needs one speed limit per joint ({len(self.joint_names)})",
+                                field="max_velocities", value=list(self.max_velocities))
+        self.takes_trajectories = True
         if not stream_rate_hz > 0:
             raise JointCtlError("must be positive", field="stream_rate_hz", value=stream_rate_hz)
         self.robot_ip = robot_ip
         self.motion_port, self.state_port = int(motion_port), int(state_port)
         self.big_endian = big_endian
         self.stream_period_s = 1.0 / stream_rate_hz
+        self.trajectory_sample_period_s = self.stream_period_s if points == "resampled" else None
         self.stale_after_s = stale_after_s
         self.connect_timeout_s = connect_timeout_s
         self.retry_s = retry_s
@@ -129,6 +174,11 @@ class IndustrialHardware(HardwareInterface):
         self._motion_lost: str | None = None
         self._threads: list[threading.Thread] = []
         self.replies = 0  # points the controller acknowledged
+        self._unanswered = 0  # points of the trajectory in hand not yet answered (streaming) or sent
+        self._done_at = -float("inf")  # time.monotonic() its last point was answered or sent
+        self._rest_reports = 0  # STATUS reports since then saying the robot is not in motion
+        self._refused_point: tuple[int, float] | None = None  # (sequence, time.monotonic()) of a FAILURE
+        self._trajectory_end: list[float] | None = None  # the last point of the trajectory in hand
         #: JOINT_POSITION reports received when ``position`` was last refreshed (by :meth:`read`).
         self.reports_read = 0
 
@@ -218,6 +268,10 @@ class IndustrialHardware(HardwareInterface):
         elif isinstance(message, RobotStatus):
             self.status = message
             self._status_at = now
+            if message.in_motion == TRISTATE_TRUE:
+                self._rest_reports = 0
+            elif now > self._done_at:
+                self._rest_reports += 1
 
     def _reconnect(self, which: str) -> bool:
         """Re-open ``which`` connection, trying every ``retry_s``; False when closing."""
@@ -251,6 +305,7 @@ class IndustrialHardware(HardwareInterface):
                     self._check_motion_alive()
                 elif isinstance(item, tuple):  # (TOPIC, point): sent, no reply to wait for
                     self._motion.sendall(encode(item[1], item[0], big_endian=self.big_endian))
+                    self._point_done()
                 else:
                     self._request(item)
             except (OSError, ConnectionError, MalformedPacket) as exc:
@@ -276,21 +331,38 @@ class IndustrialHardware(HardwareInterface):
         if readable and not sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT):
             raise ConnectionError("the controller closed the motion connection")
 
-    def _request(self, point: JointTrajPt) -> None:
-        """Send one point as a SERVICE_REQUEST and wait for the reply (the flow control)."""
+    def _request(self, point: JointTrajPt | JointTrajPtFull) -> None:
+        """Send one point as a SERVICE_REQUEST and wait for the reply (the flow control). A FAILURE
+        reply to a trajectory's point abandons the rest of that trajectory and is reported as a fault."""
         sock = self._motion
         sock.sendall(encode(point, CommType.SERVICE_REQUEST, big_endian=self.big_endian))
         reader = PacketReader(big_endian=self.big_endian)
+        kind = MsgType.JOINT_TRAJ_PT_FULL if isinstance(point, JointTrajPtFull) else MsgType.JOINT_TRAJ_PT
         while True:
             data = sock.recv(4096)
             if not data:
                 raise ConnectionError("the controller closed the motion connection")
             for packet in reader.feed(data):
-                if packet.comm_type == CommType.SERVICE_REPLY and packet.msg_type == MsgType.JOINT_TRAJ_PT:
-                    self.replies += 1
-                    if point.sequence == STOP_TRAJECTORY:
-                        self._stop_answered_at = time.monotonic()
-                    return
+                if packet.comm_type != CommType.SERVICE_REPLY or packet.msg_type != kind:
+                    continue
+                self.replies += 1
+                if point.sequence == STOP_TRAJECTORY:
+                    self._stop_answered_at = time.monotonic()
+                elif packet.reply_code != ReplyCode.SUCCESS:
+                    self._drop_outbox()
+                    self._unanswered = 0
+                    self._refused_point = (point.sequence, time.monotonic())
+                else:
+                    self._point_done()
+                return
+
+    def _point_done(self) -> None:
+        """A point of the trajectory in hand was answered (streaming) or sent (download)."""
+        if self._unanswered > 0:
+            self._unanswered -= 1
+            if self._unanswered == 0:
+                self._done_at = time.monotonic()
+                self._rest_reports = 0
 
     def _drop_outbox(self) -> None:
         while True:
@@ -306,8 +378,11 @@ class IndustrialHardware(HardwareInterface):
         answered and a later STATUS says the robot is not in motion, ``fault`` says so (the
         executor then follows the measured position, so that nothing moves when it clears)."""
         self._drop_outbox()
+        self._unanswered = 0
+        self._trajectory_end = None
         self._stop_answered_at = None
         self._stopping = True
+        self.fault = STOPPING  # at once: nothing more is streamed in this cycle
         self._outbox.put(JointTrajPt(STOP_TRAJECTORY, (0.0,) * MAX_JOINTS, 0.0, 0.0))
         self._last_sent = None  # the next motion starts a new trajectory from where the robot stops
 
@@ -334,12 +409,27 @@ class IndustrialHardware(HardwareInterface):
         self.in_motion = None if status is None or status.in_motion == TRISTATE_UNKNOWN else \
             status.in_motion == TRISTATE_TRUE
         refused = status is not None and status.in_error == TRISTATE_TRUE
-        if self._stopping and self._stopped(status):
+        came_to_rest = self._stopping and self._stopped(status)
+        if came_to_rest:
+            # At rest there. The fault lasts this one more read, so that the executor takes this
+            # position as its hold too: when it clears, the command is the rest and nothing is sent.
             self._stopping = False
-        if self._motion_lost is not None:
+            self._last_sent = list(self.position)
+        refused_point = self._refused_point
+        if refused_point is not None and (self._status_at > refused_point[1]
+                                          or time.monotonic() > refused_point[1] + ERROR_CODE_WAIT_S):
+            # Reported for one read, as a refusal STATUS is: the goal aborts; the next motion starts
+            # a new trajectory (sequence 0), which clears the controller's error.
+            self._refused_point = None
+            self._refusal_reported = True
+            self._last_sent = None
+            code = (f"STATUS error_code {status.error_code}" if refused and self._status_at > refused_point[1]
+                    else "no error code reported")
+            self.fault = f"the controller refused point {refused_point[0]} of the trajectory (FAILURE; {code})"
+        elif self._motion_lost is not None:
             self.fault = self._motion_lost
-        elif self._stopping:
-            self.fault = "stopping: STOP sent, until the controller reports the robot at rest"
+        elif self._stopping or came_to_rest:
+            self.fault = STOPPING
         elif refused and not self._refusal_reported:
             # Reported for one read: the trajectory in progress is aborted; the next motion starts a
             # new trajectory (sequence 0), which clears the controller's error.
@@ -353,46 +443,108 @@ class IndustrialHardware(HardwareInterface):
                 self.velocity[:] = [0.0] * len(self.velocity)
         else:
             self.fault = None
+        if self.fault is not None:
+            self._trajectory_end = None  # the executor follows the measured position now
         if not refused:
             self._refusal_reported = False
 
-    def download_motion(self, joint_indices: Sequence[int], times_s: Sequence[float],
-                        positions: Sequence[Sequence[float]]) -> None:
-        """Send a trajectory in ROS-I's download handshake: every point as a TOPIC, the first with
-        sequence -1 (START_TRAJECTORY_DOWNLOAD), the last -3 (END_TRAJECTORY), a one-point
-        trajectory twice; each point's ``duration`` is the time since the previous one. Joints not
-        in ``joint_indices`` keep their last position command."""
+    def execute_trajectory(self, joint_indices: Sequence[int], times_s: Sequence[float],
+                           positions: Sequence[Sequence[float]],
+                           velocities: Sequence[Sequence[float]] | None = None,
+                           accelerations: Sequence[Sequence[float]] | None = None) -> None:
+        """Send a trajectory as ROS-I's client does (``hardware/ros_industrial_points.py``): each point
+        with its speed fraction and its duration since the previous one (a first point at time 0 is
+        where the robot is, and is not sent), as JOINT_TRAJ_PT or, with ``message="full"``,
+        JOINT_TRAJ_PT_FULL (its time from the start, positions, velocities and accelerations). Streaming:
+        requests with sequence 0, 1, 2..., each sent once the previous one was answered; download:
+        topics from -1 to -3, a one-point trajectory twice. Joints not in ``joint_indices`` keep their
+        last position command. :attr:`executing` is True until every point was answered (or sent) and
+        the controller then reported the robot at rest."""
         base = list(self.command_buffer(POSITION))
-        points = []
-        for k, (t, row) in enumerate(zip(times_s, positions)):
-            full = list(base)
-            for i, q in zip(joint_indices, row):
-                full[i] = float(q)
-            duration = float(t - times_s[k - 1]) if k else 0.0
-            points.append((tuple(full) + (0.0,) * (MAX_JOINTS - len(full)), duration))
-        if len(points) == 1:
-            points.append(points[0])
-        last = len(points) - 1
+        n = len(base)
+
+        def rows(array, fill):
+            if array is None:
+                return None
+            out = []
+            for row in array:
+                full = list(fill)
+                for i, x in zip(joint_indices, row):
+                    full[i] = float(x)
+                out.append(full)
+            return out
+
+        points = wire_points(times_s, rows(positions, base), rows(velocities, [0.0] * n),
+                             rows(accelerations, [0.0] * n), self.max_velocities, default_speed=self.default_speed)
+        if not points:
+            return
         self._drop_outbox()
-        for k, (q, duration) in enumerate(points):
-            seq = START_TRAJECTORY_DOWNLOAD if k == 0 else END_TRAJECTORY if k == last else k
-            self._outbox.put((CommType.TOPIC, JointTrajPt(seq, q, 0.0, duration)))
-        self._last_sent = list(points[-1][0][: len(self.joint_names)])
+        if self.motion == "download":
+            if len(points) == 1:
+                points = points * 2
+            last = len(points) - 1
+            sequences = [START_TRAJECTORY_DOWNLOAD if k == 0 else END_TRAJECTORY if k == last else k
+                         for k in range(len(points))]
+        else:
+            sequences = list(range(len(points)))
+        self._unanswered = len(points)
+        for seq, point in zip(sequences, points):
+            message = self._message(seq, point)
+            self._outbox.put((CommType.TOPIC, message) if self.motion == "download" else message)
+        self._last_sent = list(points[-1].positions)
+        self._trajectory_end = list(points[-1].positions)
+        self._sequence = len(points)
+        self._streaming = False
+
+    def _message(self, seq: int, point: WirePoint) -> JointTrajPt | JointTrajPtFull:
+        pad = (0.0,) * (MAX_JOINTS - len(point.positions))
+        if self.message == "pt":
+            return JointTrajPt(seq, point.positions + pad, point.speed_fraction, point.duration_s)
+        fields = VALID_TIME | VALID_POSITION
+        velocities = accelerations = (0.0,) * MAX_JOINTS
+        if point.velocities is not None:
+            fields |= VALID_VELOCITY
+            velocities = point.velocities + pad
+        if point.accelerations is not None:
+            fields |= VALID_ACCELERATION
+            accelerations = point.accelerations + pad
+        return JointTrajPtFull(0, seq, fields, point.time_s, point.positions + pad, velocities, accelerations)
+
+    @property
+    def executing(self) -> bool:
+        """True while the trajectory in hand has points not yet answered (or sent), and until the
+        controller, after the last one, reported the robot at rest (twice: the ports race); a
+        controller that never sent a STATUS is taken at its answers."""
+        if self._unanswered > 0:
+            return True
+        if self.status is None or self._done_at == -float("inf"):
+            return False
+        return self._rest_reports < REST_REPORTS and not self._stopping
 
     def write(self) -> None:
-        if self.takes_trajectories:
-            return  # the controller executes downloaded trajectories; nothing is streamed
+        """Stream the position command, when no trajectory is in hand: every stream period, when it
+        changed, as a point whose duration is the stream period and whose speed fraction is that of
+        the critical joint's speed over the period (ROS-I's rule on velocities Δq / period)."""
         if self._time_s + 1e-9 < self._next_stream_s:
             return
         self._next_stream_s += self.stream_period_s
         command = self.command_buffer(POSITION)
+        end = self._trajectory_end
+        if end is not None:  # a trajectory in hand: the command is the executor's plan of it, not sent
+            if all(abs(q - e) <= 1e-9 for q, e in zip(command, end)):
+                self._trajectory_end = None  # the plan has reached its end
+            return
         if command == self._last_sent or self.fault is not None:
             self._streaming = False  # a tick without a point: the motion (if any) has ended
             return
         if self._last_sent is None or not self._streaming and self._at_rest():
             self._sequence = 0  # a motion from rest: a new trajectory at the controller
-        positions = tuple(command) + (0.0,) * (MAX_JOINTS - len(command))
-        self._outbox.put(JointTrajPt(self._sequence, positions, 0.0, self.stream_period_s))
+        previous = self._last_sent if self._last_sent is not None else list(self.position)
+        velocities = [(q - p) / self.stream_period_s for q, p in zip(command, previous)]
+        point = WirePoint((self._sequence + 1) * self.stream_period_s, tuple(command), tuple(velocities), None,
+                          speed_fraction(velocities, self.max_velocities, default=self.default_speed),
+                          self.stream_period_s)
+        self._outbox.put(self._message(self._sequence, point))
         self._sequence += 1
         self._last_sent = list(command)
         self._streaming = True
@@ -410,4 +562,5 @@ class IndustrialHardware(HardwareInterface):
         return self._state_reports
 
 
-__all__ = ["MOTION_HANDSHAKES", "MOTION_PORT", "STATE_PORT", "HardwareUnreachable", "IndustrialHardware"]
+__all__ = ["MOTION_HANDSHAKES", "MOTION_PORT", "POINT_MESSAGES", "STATE_PORT", "STREAM_POINTS", "HardwareUnreachable",
+           "IndustrialHardware"]

@@ -158,15 +158,24 @@ class HardwareInterface(ABC):
     def advance(self, period_s: float) -> None:
         """Let ``period_s`` seconds of hardware time pass."""
 
-    #: True for hardware that executes whole trajectories itself (an industrial controller's download
-    #: handshake): a trajectory executor hands it each goal through :meth:`download_motion`.
+    #: True for hardware that executes whole trajectories itself (an industrial controller with its own
+    #: interpolator): a trajectory executor hands it each goal through :meth:`execute_trajectory`.
     takes_trajectories: bool = False
+    #: With ``takes_trajectories``: None to be handed the goal's own points, or the period [s] at which
+    #: the executor samples its plan of the goal (for a controller that wants a dense stream).
+    trajectory_sample_period_s: float | None = None
+    #: With ``takes_trajectories``: True while a trajectory handed over is still being sent or executed,
+    #: by the hardware's own word. A goal on such hardware ends when this is False (or on a fault).
+    executing: bool = False
 
-    def download_motion(self, joint_indices: Sequence[int], times_s: Sequence[float],
-                        positions: Sequence[Sequence[float]]) -> None:
+    def execute_trajectory(self, joint_indices: Sequence[int], times_s: Sequence[float],
+                           positions: Sequence[Sequence[float]],
+                           velocities: Sequence[Sequence[float]] | None = None,
+                           accelerations: Sequence[Sequence[float]] | None = None) -> None:
         """Execute a trajectory by the hardware's own means: ``positions[k]`` [rad or m] of the joints
-        ``joint_indices`` at ``times_s[k]`` [s] from now (increasing, the first 0: where the motion
-        starts). Only hardware with ``takes_trajectories`` implements it."""
+        ``joint_indices`` (with ``velocities[k]`` [per s] and ``accelerations[k]`` [per s²] when given)
+        at ``times_s[k]`` [s] from now, increasing; a point at 0 is where the motion starts. Joints not
+        listed keep their position command. Only hardware with ``takes_trajectories`` implements it."""
         raise NotImplementedError(f"{type(self).__name__} does not take whole trajectories")
 
     def stop_motion(self) -> None:

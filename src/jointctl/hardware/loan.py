@@ -57,12 +57,22 @@ class HardwareLoan:
 
     @property
     def takes_trajectories(self) -> bool:
-        """Whether the hardware executes whole trajectories (see ``HardwareInterface.download_motion``)."""
+        """Whether the hardware executes whole trajectories (see ``HardwareInterface.execute_trajectory``)."""
         return self._hardware.takes_trajectories
 
-    def download_motion(self, joint_indices, times_s, positions) -> None:
-        """Execute a trajectory by the hardware's own means (see ``HardwareInterface.download_motion``)."""
-        self._hardware.download_motion(joint_indices, times_s, positions)
+    @property
+    def trajectory_sample_period_s(self) -> float | None:
+        """None: the hardware takes a goal's own points; else the period to sample a goal at [s]."""
+        return self._hardware.trajectory_sample_period_s
+
+    @property
+    def executing(self) -> bool:
+        """Whether a trajectory handed to the hardware is still being sent or executed."""
+        return self._hardware.executing
+
+    def execute_trajectory(self, joint_indices, times_s, positions, velocities=None, accelerations=None) -> None:
+        """Execute a trajectory by the hardware's own means (see ``HardwareInterface.execute_trajectory``)."""
+        self._hardware.execute_trajectory(joint_indices, times_s, positions, velocities, accelerations)
 
     def stop_motion(self) -> None:
         """Bring the joints to rest by the hardware's own means (see ``HardwareInterface.stop_motion``)."""

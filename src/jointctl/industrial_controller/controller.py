@@ -131,9 +131,9 @@ class SimulatedController:
     def _cycle(self, time_s: float) -> None:
         if self._closing.is_set():  # closed before or while run() started
             self.session.loop.request_stop()
-        positions, velocities = self.program.cycle(self.session.loop.period_s)
-        for set_reference, q, v in zip(self._set_references, positions, velocities):
-            set_reference(q, v)
+        positions, velocities, accelerations = self.program.cycle(self.session.loop.period_s)
+        for set_reference, q, v, a in zip(self._set_references, positions, velocities, accelerations):
+            set_reference(q, v, a)
 
     def _measure(self, time_s: float) -> None:
         hardware, threshold = self.session.hardware, self.moving_threshold

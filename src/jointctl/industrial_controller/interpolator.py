@@ -141,12 +141,14 @@ class JointLimits:
 @dataclass(frozen=True)
 class Point:
     """A trajectory point: ``positions`` [rad or m], one per joint; ``velocity`` a fraction of each
-    joint's maximum speed in [0, 1] (0: none given, only the limits apply); ``duration`` [s] of the
-    segment that ends at this point, >= 0."""
+    joint's maximum speed in (0, 1]; ``duration`` [s] of the segment that ends at this point, >= 0;
+    ``velocities`` [per s], one per joint, when the point gives the joints' velocities there (a
+    JOINT_TRAJ_PT_FULL point): the segment is then a cubic through both ends' positions and velocities."""
 
     positions: tuple[float, ...]
     velocity: float
     duration: float
+    velocities: tuple[float, ...] | None = None
 
 
 def _is_number(x: object) -> bool:
@@ -182,9 +184,12 @@ class Interpolator:
         self._zeros = [0.0] * len(self.limits)
         self._q = [min(max(float(q), lo), hi) for q, lo, hi in zip(start, self._lower, self._upper)]
         self._v = list(self._zeros)
+        self._a = list(self._zeros)
         self._queue: deque[Point] = deque()
-        # The segment in progress: start, change, end positions, velocity, length T [s], time spent [s].
+        # The segment in progress: start, change, end positions, velocity, length T [s]; and, for a
+        # cubic segment, the start and end velocities (None for a linear one).
         self._seg: tuple[list[float], list[float], list[float], list[float], float] | None = None
+        self._ends: tuple[list[float], list[float]] | None = None
         self._seg_t = 0.0
         self._stopping = False  # a stop(): brake to rest, queued points wait
         self._braking = False  # a segment abandoned by new_trajectory(): brake until a point comes
@@ -211,9 +216,20 @@ class Interpolator:
         v = point.velocity
         if not (_is_number(v) and math.isfinite(v)):
             raise RefusedPoint("must be a finite number", error_code=ERROR_NOT_FINITE, field="velocity", value=v)
-        if not 0.0 <= v <= 1.0:
-            raise RefusedPoint("must be a fraction of the maximum speed in [0, 1]", error_code=ERROR_BAD_VELOCITY,
-                               field="velocity", value=v)
+        if not 0.0 < v <= 1.0:
+            raise RefusedPoint("must be a fraction of the maximum speed in (0, 1] (at 0 the point is never "
+                               "reached)", error_code=ERROR_BAD_VELOCITY, field="velocity", value=v)
+        if point.velocities is not None:
+            if len(point.velocities) != len(self.limits):
+                raise RefusedPoint(f"needs {len(self.limits)} joint velocities", error_code=ERROR_JOINT_COUNT,
+                                   field="velocities", value=len(point.velocities))
+            for i, (vi, vmax) in enumerate(zip(point.velocities, self._vmax)):
+                if not (_is_number(vi) and math.isfinite(vi)):
+                    raise RefusedPoint("must be a finite number [per s]", error_code=ERROR_NOT_FINITE,
+                                       field=f"velocities[{i}]", value=vi)
+                if abs(vi) > vmax * (1.0 + FLOAT32_REL_TOL):
+                    raise RefusedPoint(f"above the joint's speed limit {vmax:g}", error_code=ERROR_BAD_VELOCITY,
+                                       field=f"velocities[{i}]", value=vi)
         d = point.duration
         if not (_is_number(d) and math.isfinite(d)):
             raise RefusedPoint("must be a finite number [s]", error_code=ERROR_NOT_FINITE, field="duration", value=d)
@@ -229,7 +245,8 @@ class Interpolator:
             raise QueueFull(f"the queue holds {self.capacity} points; wait for the robot to take one",
                             field="queue", value=len(self._queue))
         positions = tuple(min(max(float(q), lo), hi) for q, lo, hi in zip(point.positions, self._lower, self._upper))
-        self._queue.append(Point(positions, float(point.velocity), float(point.duration)))
+        velocities = None if point.velocities is None else tuple(map(float, point.velocities))
+        self._queue.append(Point(positions, float(point.velocity), float(point.duration), velocities))
 
     @property
     def full(self) -> bool:
@@ -245,6 +262,7 @@ class Interpolator:
         position and velocity; the next point starts from it. With no point to go to, a moving
         reference brakes at each joint's deceleration (as in :meth:`stop`)."""
         self._queue.clear()
+        self._ends = None
         if self._seg is not None:
             self._seg = None
             self._seg_t = 0.0
@@ -256,6 +274,7 @@ class Interpolator:
         meanwhile start from the rest position."""
         self._queue.clear()
         self._seg = None
+        self._ends = None
         self._seg_t = 0.0
         self._braking = False
         self._stopping = any(v != 0.0 for v in self._v)
@@ -276,6 +295,12 @@ class Interpolator:
         """The current velocity references [rad/s or m/s] (a copy)."""
         return list(self._v)
 
+    @property
+    def acceleration(self) -> list[float]:
+        """The current acceleration references [rad/s² or m/s²] (a copy): 0 on linear segments and at
+        rest, the braking deceleration while stopping, the cubic's on a segment with end velocities."""
+        return list(self._a)
+
     # -- time --------------------------------------------------------------------------------------
     def step(self, dt: float) -> tuple[list[float], list[float]]:
         """Advance ``dt`` [s] (>= 0, finite); return the (positions, velocities) references per joint."""
@@ -294,7 +319,11 @@ class Interpolator:
             seg = self._seg
             if seg is None:
                 if not self._queue:
+                    if any(v != 0.0 for v in self._v):  # a cubic ended moving, nothing follows: brake
+                        self._braking = True
+                        continue
                     self._v = list(self._zeros)
+                    self._a = list(self._zeros)
                     return list(self._q), list(self._v)
                 self._begin(self._queue.popleft())
                 continue
@@ -303,19 +332,27 @@ class Interpolator:
             if left < remaining - TIME_EPS_S:
                 self._seg_t += left
                 s = self._seg_t / length
-                self._q = [min(max(a + s * d, lo), hi)
-                           for a, d, lo, hi in zip(start, change, self._lower, self._upper)]
-                self._v = list(vel)
+                if self._ends is None:
+                    self._q = [min(max(a + s * d, lo), hi)
+                               for a, d, lo, hi in zip(start, change, self._lower, self._upper)]
+                    self._v = list(vel)
+                    self._a = list(self._zeros)
+                else:
+                    self._cubic(s, length)
                 return list(self._q), list(self._v)
             # The segment ends within this step: its point exactly, and the rest of dt goes on.
             left = max(left - remaining, 0.0)
             self._q = list(end)
             self._seg = None
             self._seg_t = 0.0
-            self._v = list(self._zeros)
+            self._v = list(self._zeros) if self._ends is None else list(self._ends[1])
+            self._a = list(self._zeros)
+            self._ends = None
 
     def _begin(self, point: Point) -> None:
-        """Start the segment from the reference to ``point`` (or complete it at once if it takes no time)."""
+        """Start the segment from the reference to ``point`` (or complete it at once if it takes no
+        time): ``T = max(duration, max_i |Δq_i| / (fraction · vmax_i))``, linear, or a cubic from the
+        reference's velocity to the point's when it gives velocities."""
         start = self._q
         end = list(point.positions)
         change = [q - a for q, a in zip(end, start)]
@@ -323,16 +360,33 @@ class Interpolator:
         frac = point.velocity
         for d, vmax in zip(change, self._vmax):
             if d != 0.0:
-                length = max(length, abs(d) / vmax, abs(d) / (frac * vmax) if frac > 0.0 else 0.0)
+                length = max(length, abs(d) / (frac * vmax))
         if length <= 0.0:  # nothing to move and no time to take (or no velocity limit): there at once
             self._q = end
+            self._v = list(self._zeros) if point.velocities is None else list(point.velocities)
             return
         self._seg = (list(start), change, end, [d / length for d in change], length)
+        self._ends = None if point.velocities is None else (list(self._v), list(point.velocities))
         self._seg_t = 0.0
+
+    def _cubic(self, s: float, length: float) -> None:
+        """Position, velocity and acceleration at ``s`` (0..1) of the cubic segment in progress: the
+        Hermite cubic through both ends' positions and velocities over ``length`` [s]."""
+        start, change, _, _, _ = self._seg
+        v0, v1 = self._ends
+        s2, s3 = s * s, s * s * s
+        h10, h11 = s3 - 2 * s2 + s, s3 - s2
+        h01 = -2 * s3 + 3 * s2
+        d01, d10, d11 = (-6 * s2 + 6 * s) / length, 3 * s2 - 4 * s + 1, 3 * s2 - 2 * s
+        dd01, dd10, dd11 = (-12 * s + 6) / length**2, (6 * s - 4) / length, (6 * s - 2) / length
+        self._q = [min(max(a + h01 * d + length * (h10 * va + h11 * vb), lo), hi)
+                   for a, d, va, vb, lo, hi in zip(start, change, v0, v1, self._lower, self._upper)]
+        self._v = [d01 * d + d10 * va + d11 * vb for d, va, vb in zip(change, v0, v1)]
+        self._a = [dd01 * d + dd10 * va + dd11 * vb for d, va, vb in zip(change, v0, v1)]
 
     def _brake(self, dt: float) -> float | None:
         """Decelerate every moving joint for up to ``dt``; the time left once all are at rest, else None."""
-        q, v = list(self._q), list(self._v)
+        q, v, acc = list(self._q), list(self._v), list(self._zeros)
         rest_after = 0.0  # time [s] into dt at which the last joint came to rest
         moving = False
         for i, vi in enumerate(v):
@@ -342,9 +396,11 @@ class Interpolator:
             t_rest = abs(vi) / a
             if t_rest <= dt + TIME_EPS_S:  # at rest within this step: the ramp's remaining area
                 dist, v_new, t = 0.5 * vi * t_rest, 0.0, min(t_rest, dt)
+                acc[i] = 0.0
             else:
                 v_new = vi - math.copysign(a * dt, vi)
                 dist, t = 0.5 * (vi + v_new) * dt, dt
+                acc[i] = -math.copysign(a, vi)
             qi = q[i] + dist
             if qi >= self._upper[i]:
                 qi, v_new = self._upper[i], 0.0
@@ -355,7 +411,7 @@ class Interpolator:
                 moving = True
             else:
                 rest_after = max(rest_after, t)
-        self._q, self._v = q, v
+        self._q, self._v, self._a = q, v, acc
         return None if moving else max(dt - rest_after, 0.0)
 
 

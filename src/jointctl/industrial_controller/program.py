@@ -53,8 +53,11 @@ from jointctl.wire.simple_message import (
     STOP_TRAJECTORY,
     TRISTATE_FALSE,
     TRISTATE_TRUE,
+    VALID_TIME,
+    VALID_VELOCITY,
     CommType,
     JointTrajPt,
+    JointTrajPtFull,
     MsgType,
     Packet,
     PacketReader,
@@ -89,6 +92,7 @@ class ControllerProgram:
         self._waiting = 0                        # handlers holding a reply back (flow control)
         self._backlog: deque[Point] = deque()    # downloaded points waiting for room in the queue
         self._download: list[Point] | None = None
+        self._time_s = 0.0                       # the trajectory's last FULL point's time [s]
         self._accepting = True                   # False after a refusal or a STOP, until a new trajectory
         #: The last refusal's code (``ERROR_*`` of the interpolator or of this module), 0 when none.
         self.error_code = 0
@@ -110,10 +114,14 @@ class ControllerProgram:
             return None
         if packet.msg_type == MsgType.PING and request:
             return self._reply(packet, ReplyCode.SUCCESS if not packet.body else ReplyCode.FAILURE)
-        if packet.msg_type != MsgType.JOINT_TRAJ_PT:
+        if packet.msg_type not in (MsgType.JOINT_TRAJ_PT, MsgType.JOINT_TRAJ_PT_FULL):
             return self._reply(packet, ReplyCode.FAILURE, echo_body=False) if request else None
         try:
-            message: JointTrajPt = decode(packet, big_endian=self.big_endian)
+            message: JointTrajPt | JointTrajPtFull = decode(packet, big_endian=self.big_endian)
+            if isinstance(message, JointTrajPtFull) and not message.valid_fields & VALID_TIME \
+                    and message.sequence != STOP_TRAJECTORY:
+                raise MalformedPacket("a JOINT_TRAJ_PT_FULL point needs its time (valid_fields bit 0x01)",
+                                      field="valid_fields", value=message.valid_fields)
         except MalformedPacket as exc:
             with self._lock:
                 self._refuse(ERROR_MALFORMED_POINT, str(exc))
@@ -131,10 +139,25 @@ class ControllerProgram:
     def _reply(self, packet: Packet, code: ReplyCode, *, echo_body: bool = True) -> bytes:
         return encode_reply(packet, code, echo_body=echo_body, big_endian=self.big_endian)
 
-    def _on_point(self, message: JointTrajPt, keep_waiting: Callable[[], bool]) -> ReplyCode | None:
+    def _point(self, message: JointTrajPt | JointTrajPtFull) -> Point:
+        """The interpolator's point for a JOINT_TRAJ_PT (speed fraction and duration as sent) or a
+        JOINT_TRAJ_PT_FULL (reached by its time since the trajectory's previous point, the joints'
+        limits only; a cubic when its velocities are valid). Lock held."""
+        n = self.joint_count
+        positions = tuple(message.positions[:n])
+        if isinstance(message, JointTrajPt):
+            return Point(positions, message.velocity, message.duration)
+        velocities = tuple(message.velocities[:n]) if message.valid_fields & VALID_VELOCITY else None
+        return Point(positions, 1.0, message.time - self._time_s, velocities)
+
+    def _on_point(self, message: JointTrajPt | JointTrajPtFull, keep_waiting: Callable[[], bool]) -> ReplyCode | None:
         seq = message.sequence
-        point = Point(tuple(message.positions[: self.joint_count]), message.velocity, message.duration)
         with self._lock:
+            if seq in (0, START_TRAJECTORY_STREAMING, START_TRAJECTORY_DOWNLOAD):
+                self._time_s = 0.0  # a FULL point's time counts from its trajectory's start
+            point = self._point(message)
+            if isinstance(message, JointTrajPtFull) and seq >= 0:
+                self._time_s = message.time
             if seq == STOP_TRAJECTORY:
                 self._stop()
                 self._log("STOP: decelerating to rest, queue cleared")
@@ -229,18 +252,18 @@ class ControllerProgram:
             self.on_event(line)
 
     # -- the servo loop -----------------------------------------------------------------------------
-    def cycle(self, period_s: float) -> tuple[list[float], list[float]]:
-        """Advance the interpolator by ``period_s`` [s]: the (positions, velocities) references of
-        the joints [rad or m, per s]. Downloaded points move into the queue as it has room, and a
-        reply held back for room is released."""
+    def cycle(self, period_s: float) -> tuple[list[float], list[float], list[float]]:
+        """Advance the interpolator by ``period_s`` [s]: the (positions, velocities, accelerations)
+        references of the joints [rad or m, per s, per s²]. Downloaded points move into the queue as
+        it has room, and a reply held back for room is released."""
         with self._lock:
             interpolator, backlog = self.interpolator, self._backlog
             while backlog and not interpolator.full:
                 interpolator.push(backlog.popleft())
-            references = interpolator.step(period_s)
+            positions, velocities = interpolator.step(period_s)
             if self._waiting and not interpolator.full:
                 self._lock.notify_all()
-            return references
+            return positions, velocities, interpolator.acceleration
 
     # -- STATUS ------------------------------------------------------------------------------------
     @property

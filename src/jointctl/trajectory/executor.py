@@ -60,9 +60,9 @@ __all__ = ["BLOCK_CYCLES", "INTERPOLATIONS", "GoalHandle", "GoalResult", "GoalSt
            "TrajectoryFeedback"]
 
 
-#: The spacing of a goal's points handed to hardware that takes whole trajectories, when the executor
-#: has no ``stream_rate_hz`` [s].
-DOWNLOAD_PERIOD_S = 0.02
+#: A goal handed whole to the hardware keeps its own times when it starts less than this late [s]
+#: (its stamp a few cycles past: the controller absorbs it); later, what is left of it is timed from now.
+LATE_START_S = 0.1
 
 
 class TrajectoryExecutor(Controller):
@@ -90,6 +90,9 @@ class TrajectoryExecutor(Controller):
         self.stream_rate_hz = params.number("stream_rate_hz", None, positive=True)
         self.velocity_feedforward = params.boolean("velocity_feedforward", True)
         self.feedback_rate_hz = params.number("feedback_rate_hz", 20.0, positive=True)
+        #: Set by the user, ``goal_time_s`` also bounds how long hardware that executes goals itself may
+        #: take beyond the goal's end; unset, such hardware takes as long as its own timing needs.
+        self.goal_time_limited = params.has("goal_time_s")
         self.goal_time_s = params.number("goal_time_s", 0.5, minimum=0)
         self.stopped_velocity_tolerance = params.number("stopped_velocity_tolerance", 0.01, minimum=0)
         self.goal_tolerance = self._per_joint(params, "goal_tolerance", 0.0)
@@ -339,6 +342,7 @@ class TrajectoryExecutor(Controller):
 
     # -- the cycle ---------------------------------------------------------------------------
     _last_time_s = 0.0
+    _executed_at_s = math.inf  # when the hardware finished executing the goal handed over
 
     def update(self, time_s: float, period_s: float) -> None:
         self._last_time_s = time_s
@@ -420,20 +424,42 @@ class TrajectoryExecutor(Controller):
         self._next_stream_s = time_s
         self._next_feedback_s = time_s
         self._supervise_at = time_s
-        if not self.downstream and self.hardware.takes_trajectories:
-            self._download(handle, time_s, period_s)
+        if self._hands_over():
+            self._hand_over(handle, time_s, period_s)
 
-    def _download(self, handle: GoalHandle, time_s: float, period_s: float) -> None:
-        """Hand the goal, as planned from this cycle, to hardware that executes whole trajectories: its
-        positions every stream period (``stream_rate_hz``, else 50 Hz) and at the end. The executor
-        runs its own copy of the plan as usual, for feedback, tolerances and the result."""
-        plan = Plan.splice(handle.validated, self._state(), time_s - period_s, time_s,
+    def _hands_over(self) -> bool:
+        """Whether goals go whole to the hardware (it interpolates them itself)."""
+        return not self.downstream and self.hardware.takes_trajectories
+
+    def _hand_over(self, handle: GoalHandle, time_s: float, period_s: float) -> None:
+        """Hand the goal to hardware that executes whole trajectories: its own points (with their own
+        times; of a goal stamped in the past, those still to come, from now), or, when the hardware asks
+        for a sampling period, the goal as
+        planned from this cycle sampled every period and at its end. The executor runs its own copy
+        of the plan as usual, for feedback and the result."""
+        hw = self.hardware
+        step = hw.trajectory_sample_period_s
+        goal = handle.validated
+        hw_index = [self.hw_index[i] for i in goal.joint_indices]
+        if step is None:
+            offset = goal.start_time_s - time_s
+            if offset > -LATE_START_S:  # the goal's own times, as ROS-I's client sends them
+                keep = list(range(len(goal.times_s)))
+                times = [float(t) for t in goal.times_s]
+            else:  # stamped well in the past: what is left of it, from now
+                keep = [k for k, t in enumerate(goal.times_s) if offset + float(t) > 1e-9] or [len(goal.times_s) - 1]
+                times = [max(offset + float(goal.times_s[k]), period_s) for k in keep]
+            rows = lambda array: None if array is None else [array[k] for k in keep]  # noqa: E731
+            hw.execute_trajectory(hw_index, times, rows(goal.positions), rows(goal.velocities),
+                                  rows(goal.accelerations))
+            return
+        plan = Plan.splice(goal, self._state(), time_s - period_s, time_s,
                            interpolation=self.interpolation, stop_deceleration=self.stop_deceleration)
-        step = self._stream_period_s or DOWNLOAD_PERIOD_S
         count = max(1, math.ceil((plan.end_s - time_s) / step - 1e-9))
-        times = [time_s + k * step for k in range(count)] + [plan.end_s]
-        positions = [plan.at(t, step)[0::3] for t in times]
-        self.hardware.download_motion(self.hw_index, [t - time_s for t in times], positions)
+        times = [time_s + k * step for k in range(1, count)] + [plan.end_s]
+        samples = [plan.at(t, step) for t in times]
+        hw.execute_trajectory(self.hw_index, [t - time_s for t in times], [row[0::3] for row in samples],
+                              [row[1::3] for row in samples], [row[2::3] for row in samples])
 
     def _take_stream(self, time_s: float) -> None:
         with self._lock:
@@ -461,6 +487,9 @@ class TrajectoryExecutor(Controller):
             if goal.on_feedback is not None:
                 goal.on_feedback(feedback)
         if plan is None:
+            return
+        if self._hands_over():
+            self._supervise_hardware(time_s, plan, actual, desired)
             return
         # Next cycle that needs this: every cycle when checking the path, else feedback or the end.
         self._supervise_at = -math.inf if self._checks_path else min(self._next_feedback_s, plan.end_s)
@@ -490,3 +519,32 @@ class TrajectoryExecutor(Controller):
                            f"joint {self.joint_names[worst]!r} ended "
                            f"{abs(desired[worst] - actual[worst]):.4g} from its goal "
                            f"{self.goal_time_s} s after the end", time_s)
+
+    def _supervise_hardware(self, time_s: float, plan: Plan, actual: Row, desired: Row) -> None:
+        """A goal the hardware executes by its own timing (a controller's speed fractions may make it
+        later than planned): it succeeds once its end time has come and the hardware has executed it,
+        the joints are within the goal tolerance of its end and the hardware says the robot is at rest;
+        it is aborted when the joints are not there ``goal_time_s`` after that, or, when the user set
+        ``goal_time_s``, when the hardware still executes it that long after the goal's end. No path
+        tolerance: the controller's timing, not the plan's, is the path's (as ROS-I's action server).
+        Faults (a refused point, a lost connection, stale state) abort it in :meth:`update`."""
+        self._supervise_at = -math.inf
+        hw = self.hardware
+        if hw.executing or time_s + 1e-9 < plan.end_s:
+            self._executed_at_s = math.inf
+            if self.goal_time_limited and time_s > plan.end_s + self.goal_time_s:
+                self.hardware.stop_motion()
+                self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.GOAL_TOLERANCE_VIOLATED,
+                               f"the controller still executes the goal {self.goal_time_s} s after its end "
+                               f"(goal_time_s)", time_s)
+            return
+        self._executed_at_s = min(self._executed_at_s, time_s)
+        reached = goal_reached(desired, actual, self._of_joints(hw.velocity), self.goal_tolerance,
+                               self.stopped_velocity_tolerance)
+        if reached and hw.in_motion is not True:
+            self.goals.end(GoalStatus.SUCCEEDED, TrajectoryErrorCode.SUCCESSFUL, "", time_s)
+        elif time_s > self._executed_at_s + self.goal_time_s:
+            worst = worst_joint(desired, actual)
+            self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.GOAL_TOLERANCE_VIOLATED,
+                           f"joint {self.joint_names[worst]!r} ended {abs(desired[worst] - actual[worst]):.4g} "
+                           f"from its goal {self.goal_time_s} s after the controller executed it", time_s)

@@ -1,0 +1,229 @@
+"""Robot controllers of the kinds users own, as simple_message peers on loopback, built from the
+reference behaviour (simple-message-facts.md §7-§10), not from jointctl's own conventions:
+
+- ``"duration"``: a controller program on ROS-I's reference ``simple_message`` library that reaches
+  each JOINT_TRAJ_PT over its ``duration`` by linear interpolation, on a 100 Hz interpolation tick:
+  each point costs one 10 ms tick on top of its duration (the tick on which it is taken from the
+  queue). The speed fraction is ignored.
+- ``"speed"``: a controller that moves only by the speed fraction, as most industrial motion
+  programs do (``MOVJ ... VJ=fraction``): each segment takes ``max_i |Δq_i| / (fraction · v_max,i)``;
+  the duration is ignored; a fraction of 0 (or less, or above 1) is answered FAILURE with STATUS
+  ``in_error`` and an error code, and stops the trajectory until a new one begins.
+- ``"full"``: a controller that takes JOINT_TRAJ_PT_FULL points by their ``time`` (from the
+  trajectory's start, linear between points); a JOINT_TRAJ_PT is answered FAILURE.
+
+All of them: the STATE port pushes JOINT_POSITION and STATUS (TOPIC) every 10 ms with a truthful
+``in_motion``; the MOTION port takes points as SERVICE_REQUESTs (sequence 0 starts a new
+trajectory), queues up to ``capacity`` and holds the reply while the queue is full (the flow
+control); STOP (-4) clears the queue, the joints stop where they are, and is answered. Every point
+received is kept in ``points`` (the decoded message) with the double's clock when it arrived.
+"""
+
+from __future__ import annotations
+
+import math
+import socket
+import threading
+import time
+from collections import deque
+
+from jointctl.wire.simple_message import (
+    STOP_TRAJECTORY,
+    CommType,
+    JointPosition,
+    JointTrajPt,
+    JointTrajPtFull,
+    PacketReader,
+    ReplyCode,
+    RobotStatus,
+    decode,
+    encode,
+    encode_reply,
+)
+
+KINDS = ("duration", "speed", "full")
+TICK_S = 0.01           # the reference library's interpolation tick (100 Hz)
+ERROR_BAD_SPEED = 21    # STATUS error_code of the "speed" double for a fraction outside (0, 1]
+ERROR_NOT_FULL = 22     # STATUS error_code of the "full" double for a JOINT_TRAJ_PT
+
+
+class ControllerDouble:
+    """One of :data:`KINDS` (see the module docstring) for joints with ``max_velocities`` [rad/s],
+    starting at ``positions``."""
+
+    def __init__(self, kind: str, positions, max_velocities, *, capacity: int = 8,
+                 period_s: float = 0.01) -> None:
+        assert kind in KINDS
+        self.kind, self.capacity, self.period_s = kind, capacity, period_s
+        self.max_velocities = list(max_velocities)
+        self.positions = list(map(float, positions))
+        self.points: list[tuple[float, JointTrajPt | JointTrajPtFull]] = []
+        self.stops = 0
+        self.error_code = 0
+        self._queue: deque = deque()       # (target positions, segment length [s])
+        self._segment = None               # [start, target, length, elapsed]
+        self._last_time = 0.0              # the trajectory's previous FULL point's time
+        self._accepting = True
+        self._clock = time.monotonic()
+        self.lock = threading.Condition()
+        self.closing = threading.Event()
+        self.servers = [socket.create_server(("127.0.0.1", 0)) for _ in range(2)]
+        self.motion_port, self.state_port = (s.getsockname()[1] for s in self.servers)
+        self._connections: list[socket.socket] = []
+        self._threads = [threading.Thread(target=self._state, daemon=True),
+                         threading.Thread(target=self._motion, daemon=True)]
+        for thread in self._threads:
+            thread.start()
+
+    # -- motion (under self.lock) ------------------------------------------------------------------
+    def _advance(self) -> None:
+        now = time.monotonic()
+        left, self._clock = now - self._clock, now
+        while left > 0:
+            if self._segment is None:
+                if not self._queue:
+                    break
+                target, length = self._queue.popleft()
+                self._segment = [list(self.positions), target, length, 0.0]
+            start, target, length, elapsed = self._segment
+            take = min(left, length - elapsed)
+            elapsed += take
+            left -= take
+            s = 1.0 if elapsed >= length else elapsed / length
+            self.positions = [a + (b - a) * s for a, b in zip(start, target)]
+            self._segment[3] = elapsed
+            if s >= 1.0:
+                self._segment = None
+        self.lock.notify_all()
+
+    @property
+    def in_motion(self) -> bool:
+        with self.lock:
+            return bool(self._queue) or self._segment is not None
+
+    def _length(self, target, message) -> float | None:
+        """The segment's length [s] to ``target`` by this kind's rule; None: refused."""
+        if self.kind == "duration":
+            return message.duration + TICK_S
+        if self.kind == "speed":
+            fraction = message.velocity
+            if not 0.0 < fraction <= 1.0:
+                return None
+            start = self._queue[-1][0] if self._queue else (self._segment[1] if self._segment else self.positions)
+            return max((abs(b - a) / (fraction * v) for a, b, v in zip(start, target, self.max_velocities)),
+                       default=0.0)
+        length = message.time - self._last_time
+        self._last_time = message.time
+        return max(length, 0.0)
+
+    def _on_point(self, message) -> ReplyCode:
+        n = len(self.positions)
+        with self.lock:
+            self._advance()
+            if message.sequence == STOP_TRAJECTORY:
+                self.stops += 1
+                self._queue.clear()
+                self._segment = None  # the joints stop where they are
+                self._accepting = False
+                return ReplyCode.SUCCESS
+            if message.sequence == 0:
+                self._queue.clear()
+                self._segment = None
+                self._last_time = 0.0
+                self._accepting = True
+                self.error_code = 0
+            elif not self._accepting:
+                return ReplyCode.FAILURE
+            if (self.kind == "full") != isinstance(message, JointTrajPtFull):
+                self.error_code, self._accepting = ERROR_NOT_FULL, False
+                return ReplyCode.FAILURE
+            target = list(message.positions[:n])
+            length = self._length(target, message)
+            if length is None:
+                self.error_code, self._accepting = ERROR_BAD_SPEED, False
+                self._queue.clear()
+                self._segment = None
+                return ReplyCode.FAILURE
+            while len(self._queue) >= self.capacity and not self.closing.is_set():
+                self.lock.wait(self.period_s)  # flow control: the reply waits for room
+                self._advance()
+            self._queue.append((target, length))
+            return ReplyCode.SUCCESS
+
+    # -- sockets -----------------------------------------------------------------------------------
+    def _accept(self, server: socket.socket) -> socket.socket | None:
+        while not self.closing.is_set():
+            try:
+                server.settimeout(0.1)
+                conn, _ = server.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return None
+            self._connections.append(conn)
+            return conn
+        return None
+
+    def _state(self) -> None:
+        while (conn := self._accept(self.servers[1])) is not None:
+            try:
+                while not self.closing.is_set():
+                    with self.lock:
+                        self._advance()
+                        positions = tuple(self.positions)
+                        moving = bool(self._queue) or self._segment is not None
+                        error = self.error_code
+                    status = RobotStatus(1, 0, error, 1 if error else 0, int(moving), 2, 1)
+                    conn.sendall(encode(JointPosition(0, positions)) + encode(status))
+                    self.closing.wait(self.period_s)
+            except OSError:
+                continue
+
+    def _motion(self) -> None:
+        while (conn := self._accept(self.servers[0])) is not None:
+            reader = PacketReader()
+            try:
+                while not self.closing.is_set():
+                    data = conn.recv(4096)
+                    if not data:
+                        break
+                    for packet in reader.feed(data):
+                        assert packet.comm_type == CommType.SERVICE_REQUEST
+                        message = decode(packet)
+                        self.points.append((time.monotonic(), message))
+                        conn.sendall(encode_reply(packet, self._on_point(message)))
+            except OSError:
+                continue
+            with self.lock:
+                self._queue.clear()
+                self._segment = None
+
+    def trajectory_points(self) -> list:
+        """The points received since the last sequence 0, STOPs left out."""
+        messages = [m for _, m in self.points if m.sequence != STOP_TRAJECTORY]
+        starts = [k for k, m in enumerate(messages) if m.sequence == 0]
+        return messages[starts[-1]:] if starts else []
+
+    def close(self) -> None:
+        self.closing.set()
+        for conn in self._connections:
+            try:
+                conn.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            conn.close()
+        for server in self.servers:
+            server.close()
+        for thread in self._threads:
+            thread.join(2.0)
+
+
+def ros_i_fraction(velocities, max_velocities, default: float = 0.1) -> float:
+    """ROS-I's ``calc_velocity`` written again from simple-message-facts.md §7, for the tests'
+    expectations (independent of jointctl's implementation)."""
+    if not velocities:
+        return default
+    ratios = [abs(v / m) if math.isfinite(m) and m > 0 else -1.0 for v, m in zip(velocities, max_velocities)]
+    best = max(ratios)
+    fraction = best if best > 0 else default
+    return min(1.0, max(0.0, fraction))

@@ -1,0 +1,174 @@
+"""The arm's goals through IndustrialHardware against controllers of the kinds users own
+(tests/hardware/controller_doubles.py): each goal succeeds at its target, a cancel stops the robot, and
+the points on the wire are what ROS-I's client sends for the same goal (speed fraction and duration,
+to float32), or, as JOINT_TRAJ_PT_FULL, the goal's own times, positions and velocities."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from jointctl.hardware.industrial import IndustrialHardware
+from jointctl.model.loader import load_robot_model
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import scenario_for_robot
+from jointctl.trajectory.goals import GoalStatus
+from jointctl.trajectory.messages import JointTrajectory, JointTrajectoryPoint
+from jointctl.wire.simple_message import VALID_POSITION, VALID_TIME, VALID_VELOCITY, JointTrajPtFull
+from tests.hardware.controller_doubles import KINDS, ControllerDouble, ros_i_fraction
+
+SCENARIO = scenario_for_robot("arm7dof", "industrial")
+ROBOT = load_robot_model(SCENARIO.robot.description)
+JOINTS = tuple(j.name for j in ROBOT.movable_joints)
+VMAX = tuple(j.range_and_speed()[2] for j in ROBOT.movable_joints)
+PRE_POSE = (0.0, 1.0, 0.0, -2.0, 0.0, 1.0, 0.0)
+GOAL_TOLERANCE = 0.01  # rad: the arm's industrial file
+#: Loop time allowed for a goal beyond its end: the "speed" double runs the last segment (zero
+#: velocity: ROS-I's 10 % default) at 0.02 rad/s, about a second more for this goal.
+MARGIN_S = 4.0
+
+
+def smooth_goal(delta: float, duration_s: float, points: int = 3) -> JointTrajectory:
+    """Every joint from the pre-pose by ``delta`` [rad] along a smoothstep, ``points`` points with
+    velocities (the last at rest)."""
+    times = duration_s * np.arange(1, points + 1) / points
+    tau = times / duration_s
+    s, ds = 3 * tau**2 - 2 * tau**3, 6 * tau * (1 - tau) / duration_s
+    rows = [JointTrajectoryPoint(positions=tuple(q + delta * si for q in PRE_POSE),
+                                 velocities=tuple(delta * dsi for _ in PRE_POSE), time_from_start_s=float(t))
+            for t, si, dsi in zip(times, s, ds)]
+    return JointTrajectory(JOINTS, tuple(rows))
+
+
+@pytest.fixture(params=KINDS)
+def arm(request):
+    kind = request.param
+    double = ControllerDouble(kind, PRE_POSE, VMAX)
+    hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
+                                  state_port=double.state_port, max_velocities=VMAX,
+                                  message="full" if kind == "full" else "pt")
+    hardware.connect()
+    session = Session(SCENARIO, hardware=hardware, realtime=True)
+    try:
+        yield kind, double, session, session.manager.controller("arm7dof_trajectory_controller")
+    finally:
+        hardware.close()
+        double.close()
+
+
+def run_until(session, condition, limit_s: float) -> None:
+    """Run the loop until ``condition()`` holds at the start of a cycle (or ``limit_s`` of loop time)."""
+    def check(_time_s: float) -> None:
+        if condition():
+            session.loop.request_stop()
+
+    session.loop.add_input(check)
+    try:
+        session.run(limit_s)
+    finally:
+        session.loop.remove_input(check)
+
+
+def run_until_done(session, handle, limit_s: float) -> None:
+    """Run the loop until the goal ends (or ``limit_s`` of loop time)."""
+    run_until(session, lambda: handle.done, limit_s)
+
+
+def test_a_goal_succeeds_at_its_target_and_the_wire_carries_what_ros_is_client_sends(arm) -> None:
+    kind, double, session, executor = arm
+    goal = smooth_goal(0.08, 1.2)
+    handle = executor.submit(goal, now_s=session.loop.time_s)
+    run_until_done(session, handle, 1.2 + MARGIN_S)
+    assert handle.status is GoalStatus.SUCCEEDED, handle.result
+    target = np.array(goal.points[-1].positions)
+    assert np.abs(np.array(double.positions) - target).max() < GOAL_TOLERANCE
+
+    sent = double.trajectory_points()
+    assert [m.sequence for m in sent] == [0, 1, 2]  # the goal's own points, a new trajectory
+    times = [p.time_from_start_s for p in goal.points]
+    for k, (message, point) in enumerate(zip(sent, goal.points)):
+        assert message.positions[:7] == pytest.approx(np.float32(point.positions), abs=1e-6)
+        assert message.positions[7:] == (0.0,) * 3
+        if kind == "full":
+            assert isinstance(message, JointTrajPtFull)
+            assert message.valid_fields & (VALID_TIME | VALID_POSITION | VALID_VELOCITY) == 0x07
+            assert message.time == pytest.approx(np.float32(times[k]))
+            assert message.velocities[:7] == pytest.approx(np.float32(point.velocities), abs=1e-7)
+        else:
+            previous = times[k - 1] if k else 0.0
+            assert message.duration == pytest.approx(np.float32(times[k] - previous), rel=1e-6)
+            assert message.velocity == pytest.approx(np.float32(ros_i_fraction(point.velocities, VMAX)), rel=1e-6)
+    if kind != "full":
+        # the worked numbers: 0.08 rad x 6 tau (1 - tau) / 1.2 s at tau = 1/3 and 2/3 is 0.0889 rad/s, 0.444
+        # of joint0's 0.2 rad/s; the last point at rest gets ROS-I's 10 % default, never 0
+        assert [m.velocity for m in sent] == pytest.approx([0.4444444, 0.4444444, 0.1], rel=1e-6)
+
+
+def test_a_cancel_stops_the_robot_short_of_the_goal(arm) -> None:
+    kind, double, session, executor = arm
+    goal = smooth_goal(0.3, 3.0, points=2)
+    handle = executor.submit(goal, now_s=session.loop.time_s)
+    session.run(1.5)
+    assert double.in_motion
+    handle.cancel()
+    run_until_done(session, handle, 1.0)
+    assert handle.status is GoalStatus.PREEMPTED, handle.result
+    hardware = session.hardware
+    run_until(session, lambda: double.stops >= 1 and not double.in_motion and hardware.fault is None, 3.0)
+    assert double.stops >= 1 and not double.in_motion and hardware.fault is None
+    rest = np.array(double.positions)
+    session.run(0.3)
+    assert np.array(double.positions) == pytest.approx(rest, abs=1e-9)  # it stays where it stopped
+    travelled = np.abs(rest - np.array(PRE_POSE)).max()
+    assert 0.0 < travelled < 0.3 - 0.05  # it moved, and stopped well short of the goal's 0.3 rad
+
+
+def test_a_failure_reply_aborts_the_goal_at_once_naming_the_point_and_the_error_code() -> None:
+    # A controller that takes only JOINT_TRAJ_PT_FULL, sent JOINT_TRAJ_PT: it answers FAILURE (and
+    # reports STATUS error_code 22); the goal ends long before its 3 s.
+    double = ControllerDouble("full", PRE_POSE, VMAX)
+    hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
+                                  state_port=double.state_port, max_velocities=VMAX, message="pt")
+    hardware.connect()
+    try:
+        session = Session(SCENARIO, hardware=hardware, realtime=True)
+        executor = session.manager.controller("arm7dof_trajectory_controller")
+        handle = executor.submit(smooth_goal(0.1, 3.0), now_s=session.loop.time_s)
+        run_until_done(session, handle, 3.0)
+        assert handle.status is GoalStatus.ABORTED
+        assert handle.result.time_s < 1.0
+        assert "the controller refused point 0 of the trajectory (FAILURE; STATUS error_code 22)" in \
+            handle.result.error_string
+        assert [m.sequence for _, m in double.points] == [0]  # the rest of the goal was not sent
+        assert double.positions == pytest.approx(list(PRE_POSE))  # nothing moved
+    finally:
+        hardware.close()
+        double.close()
+
+
+def test_a_streamed_command_as_full_points_carries_times_from_the_motions_start() -> None:
+    from jointctl.hardware.interface import POSITION
+
+    double = ControllerDouble("full", PRE_POSE, VMAX)
+    hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
+                                  state_port=double.state_port, max_velocities=VMAX, message="full")
+    hardware.connect()
+    try:
+        command = hardware.command_buffer(POSITION)
+        for k in range(60):  # 60 ms of loop time, joint0 moving 0.1 rad/s
+            command[0] = PRE_POSE[0] + 1e-4 * (k + 1)
+            hardware.read()
+            hardware.write()
+            hardware.advance(0.001)
+        deadline = time.monotonic() + 5.0
+        while len(double.points) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        sent = [m for _, m in double.points]
+        assert [m.sequence for m in sent] == [0, 1, 2]  # one every 20 ms, from a new trajectory
+        assert [m.time for m in sent] == pytest.approx([0.02, 0.04, 0.06], rel=1e-6)
+        assert [m.positions[0] for m in sent] == pytest.approx([1e-4, 21e-4, 41e-4], abs=1e-7)
+    finally:
+        hardware.close()
+        double.close()
