@@ -50,6 +50,7 @@ def write_scenario(tmp_path: Path):
 WALL_CLOCK_TESTS = (
     "tests/ros/",
     "tests/hardware/test_industrial.py",
+    "tests/hardware/test_industrial_peers.py",
     "tests/industrial_controller/test_controller.py",
     "tests/industrial_controller/test_bode_over_bridge.py",
     "tests/tuning/test_page.py",
