@@ -47,6 +47,7 @@ def write_scenario(tmp_path: Path):
 #: viewer's window, pacing): with ``-n 2 --dist loadgroup`` they all run on one worker, one after the
 #: other, while the other worker runs the simulated-time tests, whose results do not depend on how
 #: fast they run. A wall-clock test therefore never shares the machine with another wall-clock test.
+#: A single test elsewhere says so with ``@pytest.mark.wall_clock``.
 WALL_CLOCK_TESTS = (
     "tests/ros/",
     "tests/hardware/test_industrial.py",
@@ -65,5 +66,5 @@ _ROOT = Path(__file__).resolve().parents[1]
 def pytest_collection_modifyitems(config, items):
     for item in items:
         path = Path(str(item.fspath)).resolve().relative_to(_ROOT).as_posix()
-        if path.startswith(WALL_CLOCK_TESTS):
+        if path.startswith(WALL_CLOCK_TESTS) or item.get_closest_marker("wall_clock") is not None:
             item.add_marker(pytest.mark.xdist_group("wall_clock"))

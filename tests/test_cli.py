@@ -164,6 +164,7 @@ def test_tune_refuses_bad_options_in_one_line(args, fragments):
     assert_one_line_error(jointctl("tune", "one_dof", *args), *fragments)
 
 
+@pytest.mark.wall_clock
 def test_tune_warns_when_listening_beyond_loopback(tmp_path):
     process = subprocess.Popen([*JOINTCTL, "tune", "one_dof", "--host", "0.0.0.0", "--allow-remote", "--port", "0",
                                 "--out", str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -186,6 +187,7 @@ def test_controller_refuses_bad_options_in_one_line(args, fragments):
     assert_one_line_error(jointctl("controller", "one_dof", "--state-port", "0", *args), *fragments)
 
 
+@pytest.mark.wall_clock
 def test_controller_says_where_it_listens_and_stops_cleanly_on_sigterm():
     process = subprocess.Popen([*JOINTCTL, "controller", "one_dof", "--motion-port", "0", "--state-port", "0",
                                 "--big-endian"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

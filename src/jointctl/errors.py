@@ -111,7 +111,10 @@ class MalformedPacket(JointCtlError):
 
 
 def _short_repr(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` within ``limit`` characters; a long one keeps its start and its end (a path's
+    file name, a list's last items), joined by "..."."""
     text = repr(value)
     if len(text) > limit:
-        text = text[: limit - 3] + "..."
+        head = (limit - 3) // 2
+        text = text[:head] + "..." + text[len(text) - (limit - 3 - head):]
     return text

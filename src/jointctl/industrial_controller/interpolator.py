@@ -12,20 +12,25 @@ Choices, as an industrial controller makes them:
 - **Segments are linear in joint space** (the book's example server and ROS-Industrial's
   industrial_robot_simulator interpolate so), from the reference where the previous segment ended
   (or where the reference rests when idle) to the point, over
-  ``T = max(duration, max_i |Δq_i| / (v_frac·vmax_i) if v_frac > 0, max_i |Δq_i| / vmax_i)``:
-  never faster than the point's speed fraction of the joint limits, never faster than the limits.
-  All joints start and arrive together. A fraction of 0 means "no fraction given" (ROS-I sends 0
-  when a point's velocities are zero, its last point for one): only the limits apply. A point
-  where the reference already is, with a duration, is a dwell of that duration; with duration 0 it
-  completes at once. The velocity reference is ``Δq / T`` during a segment and steps between
-  segments (and to 0 at the last point, which is reached exactly): the joint servos smooth it.
+  ``T = max(duration, max_i |Δq_i| / (v_frac·vmax_i))``: no sooner than the point's duration and
+  never faster than its speed fraction of the joint limits (a fraction of 1: the limits). All joints
+  start and arrive together. A fraction of 0 is refused, as a controller that scales its speed by
+  it must (the point would never be reached); ROS-I's client never sends one. A point where the
+  reference already is, with a duration, is a dwell of that duration; with duration 0 it completes
+  at once. The velocity reference is ``Δq / T`` during a segment and steps between segments (and
+  to 0 at the last point, which is reached exactly): the joint servos smooth it.
+- **Points with velocities** (a JOINT_TRAJ_PT_FULL's, reached by its time): the segment is the
+  Hermite cubic from the reference's position and velocity to the point's, over its ``T``; the
+  position, velocity and acceleration references follow the cubic. One that ends moving with no
+  point after it brakes, as below.
 - **Time is exact**: :meth:`step` crosses as many segment boundaries as its ``dt`` covers, carrying
   the time left into the next segment, and evaluates each position from its segment's start and
   the time spent in it, so nothing drifts and the last point's positions are reached bit for bit.
   A segment whose end is less than 1 ns away counts as ended (sums of ``dt`` round).
 - **Stop** (:meth:`stop`, ROS-I's ``STOP_TRAJECTORY``) clears the queue and ramps each joint's
   velocity linearly from its current value to zero at the joint's ``deceleration`` (the joints need
-  not end together; the distance is ``v²/(2a)``, integrated exactly). Points pushed while stopping
+  not end together; the distance is ``v²/(2a)``, integrated exactly); the acceleration reference is
+  that deceleration, for the servos to feed forward. Points pushed while stopping
   wait until every joint is at rest, then motion resumes from the rest position.
 - **New trajectory** (:meth:`new_trajectory`, a sequence number back to 0) forgets the queue and
   abandons the segment in progress; the reference keeps its position and velocity, and the next
