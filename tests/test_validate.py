@@ -37,4 +37,3 @@ def test_checked_number_refuses_with_the_shared_messages(value, kwargs, message)
 def test_checked_number_passes_good_values_as_floats():
     assert checked_number(3, ValueError, positive=True, minimum=1) == 3.0
     assert type(checked_number(3, ValueError)) is float
-
