@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -68,3 +69,22 @@ def pytest_collection_modifyitems(config, items):
         path = Path(str(item.fspath)).resolve().relative_to(_ROOT).as_posix()
         if path.startswith(WALL_CLOCK_TESTS) or item.get_closest_marker("wall_clock") is not None:
             item.add_marker(pytest.mark.xdist_group("wall_clock"))
+
+
+#: Niceness of a worker while it runs a simulated-time test under xdist: the wall-clock tests' processes
+#: (served nodes paced at 1 kHz, controllers, the browser) then get the CPU first, and the simulated
+#: ones take what is left (their results do not depend on it). 0 again for a wall-clock test, where the
+#: user may lower it (root; elsewhere both kinds stay at the worker's first niceness).
+SIMULATED_TIME_NICENESS = 10
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        return
+    wall_clock = any(m.kwargs.get("name") == "wall_clock" or "wall_clock" in m.args
+                     for m in item.iter_markers("xdist_group"))
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, 0 if wall_clock else SIMULATED_TIME_NICENESS)
+    except OSError:
+        pass
