@@ -48,11 +48,13 @@ render:
 	bash scripts/install_render.sh
 
 # Tests run on $(JOBS) workers: the wall-clock ones (ROS, sockets, browser) together on one, the
-# simulated-time ones spread over the others (tests/conftest.py); the 30 slowest are listed at the end.
+# simulated-time ones spread over the others at a lower priority (tests/conftest.py); then, alone, the
+# real-time measurements that need the whole machine (marked exclusive). The slowest are listed.
 JOBS ?= $(shell nproc)
 
 test: ros browser render
-	$(PY) -m pytest -q -n $(JOBS) --dist loadgroup --durations=30
+	$(PY) -m pytest -q -n $(JOBS) --dist loadgroup --durations=30 -m "not exclusive"
+	$(PY) -m pytest -q --durations=5 -m exclusive
 
 bench: venv render
 	$(PY) benchmarks/run.py

@@ -276,17 +276,16 @@ def _tracking() -> list[Result]:
 
 def _stop_time() -> list[Result]:
     from jointctl.hardware.industrial import IndustrialHardware
-    from jointctl.wire.simple_message import JointTrajPt
 
     speeds = [0.2, 0.2, 0.3, 0.3, 0.4, 0.5, 0.4]  # the arm's URDF limits [rad/s]
     process, motion, state = _controller("arm7dof")
     try:
         hardware = IndustrialHardware([f"joint{k}" for k in range(7)], robot_ip="127.0.0.1", motion_port=motion,
-                                      state_port=state)
+                                      state_port=state, max_velocities=speeds)
         hardware.connect()
         start = list(hardware.position)
         target = [q + 3.0 * v for q, v in zip(start, speeds)]  # 3 s at full speed on every joint
-        hardware._outbox.put(JointTrajPt(0, tuple(target) + (0.0,) * 3, 1.0, 3.0))
+        hardware.execute_trajectory(range(7), [3.0], [target], [speeds])  # speed fraction 1
         time.sleep(1.5)
         stopped_at = time.monotonic()
         hardware.stop_motion()

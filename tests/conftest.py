@@ -71,11 +71,11 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.xdist_group("wall_clock"))
 
 
-#: Niceness of a worker while it runs a simulated-time test under xdist: the wall-clock tests' processes
+#: Niceness of a worker while it runs a simulated-time test under xdist (the lowest): the wall-clock tests' processes
 #: (served nodes paced at 1 kHz, controllers, the browser) then get the CPU first, and the simulated
 #: ones take what is left (their results do not depend on it). 0 again for a wall-clock test, where the
 #: user may lower it (root; elsewhere both kinds stay at the worker's first niceness).
-SIMULATED_TIME_NICENESS = 10
+SIMULATED_TIME_NICENESS = 19
 
 
 @pytest.hookimpl(tryfirst=True)

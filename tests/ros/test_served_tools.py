@@ -17,6 +17,10 @@ import yaml
 from tests.ros.conftest import run, served_graph
 from tests.ros.test_gains import POSITION_PID, reconfigure
 
+#: Real-time measurements over the graph (a 1 kHz served robot and a 1 kHz client, one core each):
+#: they need the machine to themselves, so make test runs them after the parallel part, alone.
+pytestmark = pytest.mark.exclusive
+
 MASS_KG, DAMPING, G, DT = 1.01, 10.0, 9.81, 0.001
 JOINT_STATES = "/one_DOF_robot/joint_states"
 #: The served node publishes every cycle: what identification needs to see the efforts it fits.

@@ -174,6 +174,7 @@ class IndustrialHardware(HardwareInterface):
         self._motion_lost: str | None = None
         self._threads: list[threading.Thread] = []
         self.replies = 0  # points the controller acknowledged
+        self._trajectory = 0  # the number of the trajectory in hand (each handed over or stopped: +1)
         self._unanswered = 0  # points of the trajectory in hand not yet answered (streaming) or sent
         self._done_at = -float("inf")  # time.monotonic() its last point was answered or sent
         self._rest_reports = 0  # STATUS reports since then saying the robot is not in motion
@@ -303,11 +304,13 @@ class IndustrialHardware(HardwareInterface):
             try:
                 if item == ():
                     self._check_motion_alive()
-                elif isinstance(item, tuple):  # (TOPIC, point): sent, no reply to wait for
-                    self._motion.sendall(encode(item[1], item[0], big_endian=self.big_endian))
-                    self._point_done()
-                else:
-                    self._request(item)
+                else:  # (comm type, point, the trajectory it belongs to)
+                    comm, point, trajectory = item
+                    if comm == CommType.TOPIC:  # sent, no reply to wait for
+                        self._motion.sendall(encode(point, comm, big_endian=self.big_endian))
+                        self._point_done(trajectory)
+                    else:
+                        self._request(point, trajectory)
             except (OSError, ConnectionError, MalformedPacket) as exc:
                 if self._closing.is_set():
                     return
@@ -331,7 +334,7 @@ class IndustrialHardware(HardwareInterface):
         if readable and not sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT):
             raise ConnectionError("the controller closed the motion connection")
 
-    def _request(self, point: JointTrajPt | JointTrajPtFull) -> None:
+    def _request(self, point: JointTrajPt | JointTrajPtFull, trajectory: int) -> None:
         """Send one point as a SERVICE_REQUEST and wait for the reply (the flow control). A FAILURE
         reply to a trajectory's point abandons the rest of that trajectory and is reported as a fault."""
         sock = self._motion
@@ -348,17 +351,20 @@ class IndustrialHardware(HardwareInterface):
                 self.replies += 1
                 if point.sequence == STOP_TRAJECTORY:
                     self._stop_answered_at = time.monotonic()
+                elif trajectory != self._trajectory:
+                    pass  # the answer to a point of a trajectory since replaced
                 elif packet.reply_code != ReplyCode.SUCCESS:
                     self._drop_outbox()
                     self._unanswered = 0
                     self._refused_point = (point.sequence, time.monotonic())
                 else:
-                    self._point_done()
+                    self._point_done(trajectory)
                 return
 
-    def _point_done(self) -> None:
-        """A point of the trajectory in hand was answered (streaming) or sent (download)."""
-        if self._unanswered > 0:
+    def _point_done(self, trajectory: int) -> None:
+        """A point of trajectory number ``trajectory`` was answered (streaming) or sent (download):
+        counted when that trajectory is the one in hand."""
+        if trajectory == self._trajectory and self._unanswered > 0:
             self._unanswered -= 1
             if self._unanswered == 0:
                 self._done_at = time.monotonic()
@@ -377,13 +383,15 @@ class IndustrialHardware(HardwareInterface):
         """Send STOP (-4): the controller decelerates to rest and clears its queue. Until it has
         answered and a later STATUS says the robot is not in motion, ``fault`` says so (the
         executor then follows the measured position, so that nothing moves when it clears)."""
+        self._trajectory += 1
         self._drop_outbox()
         self._unanswered = 0
         self._trajectory_end = None
         self._stop_answered_at = None
         self._stopping = True
         self.fault = STOPPING  # at once: nothing more is streamed in this cycle
-        self._outbox.put(JointTrajPt(STOP_TRAJECTORY, (0.0,) * MAX_JOINTS, 0.0, 0.0))
+        self._outbox.put((CommType.SERVICE_REQUEST, JointTrajPt(STOP_TRAJECTORY, (0.0,) * MAX_JOINTS, 0.0, 0.0),
+                          self._trajectory))
         self._last_sent = None  # the next motion starts a new trajectory from where the robot stops
 
     def _stopped(self, status: RobotStatus | None) -> bool:
@@ -478,6 +486,7 @@ class IndustrialHardware(HardwareInterface):
                              rows(accelerations, [0.0] * n), self.max_velocities, default_speed=self.default_speed)
         if not points:
             return
+        self._trajectory += 1
         self._drop_outbox()
         if self.motion == "download":
             if len(points) == 1:
@@ -490,7 +499,8 @@ class IndustrialHardware(HardwareInterface):
         self._unanswered = len(points)
         for seq, point in zip(sequences, points):
             message = self._message(seq, point)
-            self._outbox.put((CommType.TOPIC, message) if self.motion == "download" else message)
+            comm = CommType.TOPIC if self.motion == "download" else CommType.SERVICE_REQUEST
+            self._outbox.put((comm, message, self._trajectory))
         self._last_sent = list(points[-1].positions)
         self._trajectory_end = list(points[-1].positions)
         self._sequence = len(points)
@@ -544,7 +554,7 @@ class IndustrialHardware(HardwareInterface):
         point = WirePoint((self._sequence + 1) * self.stream_period_s, tuple(command), tuple(velocities), None,
                           speed_fraction(velocities, self.max_velocities, default=self.default_speed),
                           self.stream_period_s)
-        self._outbox.put(self._message(self._sequence, point))
+        self._outbox.put((CommType.SERVICE_REQUEST, self._message(self._sequence, point), self._trajectory))
         self._sequence += 1
         self._last_sent = list(command)
         self._streaming = True
