@@ -82,7 +82,7 @@ def _stop(process: subprocess.Popen) -> None:
 
 
 def _throughput() -> list[Result]:
-    from jointctl.wire.simple_message import CommType, JointTrajPt, PacketReader, Ping, encode
+    from jointctl.wire.simple_message import CommType, JointTrajPt, PacketReader, Ping, ReplyCode, encode
 
     process, motion, _ = _controller("one_dof")
     try:
@@ -92,16 +92,18 @@ def _throughput() -> list[Result]:
 
         def request(packet: bytes) -> None:
             sock.sendall(packet)
-            while not reader.feed(sock.recv(4096)):
+            while not (replies := reader.feed(sock.recv(4096))):
                 pass
+            if replies[0].reply_code != ReplyCode.SUCCESS:  # a refusal is fast, and no throughput
+                raise RuntimeError(f"the controller refused a request: {replies[0]}")
 
         ping = encode(Ping(), CommType.SERVICE_REQUEST)
         t0 = time.perf_counter()
         for _ in range(PINGS):
             request(ping)
         ping_rate = PINGS / (time.perf_counter() - t0)
-        request(encode(JointTrajPt(0, (-0.5,), 0.0, 0.0), CommType.SERVICE_REQUEST))
-        points = [encode(JointTrajPt(k, (-0.5 + 1e-4 * (k % 2),), 0.0, 0.001), CommType.SERVICE_REQUEST)
+        request(encode(JointTrajPt(0, (-0.5,), 1.0, 0.0), CommType.SERVICE_REQUEST))
+        points = [encode(JointTrajPt(k, (-0.5 + 1e-4 * (k % 2),), 1.0, 0.001), CommType.SERVICE_REQUEST)
                   for k in range(1, POINTS + 1)]
         t0 = time.perf_counter()
         for packet in points:
