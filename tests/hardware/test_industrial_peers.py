@@ -5,6 +5,7 @@ to float32), or, as JOINT_TRAJ_PT_FULL, the goal's own times, positions and velo
 
 from __future__ import annotations
 
+import contextlib
 import time
 
 import numpy as np
@@ -42,20 +43,27 @@ def smooth_goal(delta: float, duration_s: float, points: int = 3) -> JointTrajec
     return JointTrajectory(JOINTS, tuple(rows))
 
 
-@pytest.fixture(params=KINDS)
-def arm(request):
-    kind = request.param
+@contextlib.contextmanager
+def arm_against(kind: str, **options):
+    """(double, session, executor): the arm's industrial session on IndustrialHardware connected to a
+    controller double of ``kind``; ``options`` for the hardware (``message``...)."""
     double = ControllerDouble(kind, PRE_POSE, VMAX)
     hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
-                                  state_port=double.state_port, max_velocities=VMAX,
-                                  message="full" if kind == "full" else "pt")
-    hardware.connect()
-    session = Session(SCENARIO, hardware=hardware, realtime=True)
+                                  state_port=double.state_port, max_velocities=VMAX, **options)
     try:
-        yield kind, double, session, session.manager.controller("arm7dof_trajectory_controller")
+        hardware.connect()
+        session = Session(SCENARIO, hardware=hardware, realtime=True)
+        yield double, session, session.manager.controller("arm7dof_trajectory_controller")
     finally:
         hardware.close()
         double.close()
+
+
+@pytest.fixture(params=KINDS)
+def arm(request):
+    kind = request.param
+    with arm_against(kind, message="full" if kind == "full" else "pt") as (double, session, executor):
+        yield kind, double, session, executor
 
 
 def run_until(session, condition, limit_s: float) -> None:
@@ -128,13 +136,7 @@ def test_a_cancel_stops_the_robot_short_of_the_goal(arm) -> None:
 def test_a_failure_reply_aborts_the_goal_at_once_naming_the_point_and_the_error_code() -> None:
     # A controller that takes only JOINT_TRAJ_PT_FULL, sent JOINT_TRAJ_PT: it answers FAILURE (and
     # reports STATUS error_code 22); the goal ends long before its 3 s.
-    double = ControllerDouble("full", PRE_POSE, VMAX)
-    hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
-                                  state_port=double.state_port, max_velocities=VMAX, message="pt")
-    hardware.connect()
-    try:
-        session = Session(SCENARIO, hardware=hardware, realtime=True)
-        executor = session.manager.controller("arm7dof_trajectory_controller")
+    with arm_against("full", message="pt") as (double, session, executor):
         handle = executor.submit(smooth_goal(0.1, 3.0), now_s=session.loop.time_s)
         run_until_done(session, handle, 3.0)
         assert handle.status is GoalStatus.ABORTED
@@ -143,19 +145,13 @@ def test_a_failure_reply_aborts_the_goal_at_once_naming_the_point_and_the_error_
             handle.result.error_string
         assert [m.sequence for _, m in double.points] == [0]  # the rest of the goal was not sent
         assert double.positions == pytest.approx(list(PRE_POSE))  # nothing moved
-    finally:
-        hardware.close()
-        double.close()
 
 
 def test_a_streamed_command_as_full_points_carries_times_from_the_motions_start() -> None:
     from jointctl.hardware.interface import POSITION
 
-    double = ControllerDouble("full", PRE_POSE, VMAX)
-    hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
-                                  state_port=double.state_port, max_velocities=VMAX, message="full")
-    hardware.connect()
-    try:
+    with arm_against("full", message="full") as (double, session, _):
+        hardware = session.hardware
         command = hardware.command_buffer(POSITION)
         for k in range(60):  # 60 ms of loop time, joint0 moving 0.1 rad/s
             command[0] = PRE_POSE[0] + 1e-4 * (k + 1)
@@ -169,6 +165,3 @@ def test_a_streamed_command_as_full_points_carries_times_from_the_motions_start(
         assert [m.sequence for m in sent] == [0, 1, 2]  # one every 20 ms, from a new trajectory
         assert [m.time for m in sent] == pytest.approx([0.02, 0.04, 0.06], rel=1e-6)
         assert [m.positions[0] for m in sent] == pytest.approx([1e-4, 21e-4, 41e-4], abs=1e-7)
-    finally:
-        hardware.close()
-        double.close()
