@@ -61,6 +61,7 @@ def test_ros_is_defaults_then_the_robots_then_the_command_lines(double) -> None:
     ("fast", "industrial"),                    # not a mapping
     ({"points": "sparse"}, "points"),          # refused by the hardware, naming the setting
     ({"default_speed": 0.0}, "default_speed"),
+    ({"default_speed": "fast"}, "default_speed"),  # not a number: refused, not a traceback
 ])
 def test_bad_robot_settings_are_refused_naming_the_field(double, industrial, field) -> None:
     with pytest.raises(JointCtlError) as info:

@@ -122,7 +122,7 @@ class IndustrialHardware(HardwareInterface):
             raise JointCtlError(f"must be one of {', '.join(STREAM_POINTS)}", field="points", value=points)
         if message not in POINT_MESSAGES:
             raise JointCtlError(f"must be one of {', '.join(POINT_MESSAGES)}", field="message", value=message)
-        if not 0 < default_speed <= 1:
+        if isinstance(default_speed, bool) or not isinstance(default_speed, (int, float)) or not 0 < default_speed <= 1:
             raise JointCtlError("must be a fraction of the maximum speed in (0, 1]", field="default_speed",
                                 value=default_speed)
         #: The motion handshake: "streaming" (each point a request, answered when the controller has
