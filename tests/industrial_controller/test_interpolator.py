@@ -391,7 +391,8 @@ def test_a_point_with_velocities_is_reached_along_the_hermite_cubic_with_its_vel
         assert v[0] == pytest.approx(float(spline(t, 1)), abs=1e-9)
         assert interp_t.acceleration[0] == pytest.approx(float(spline(t, 2)), abs=1e-6)
     q, v = run(interp, 1000)
-    assert q == pytest.approx([0.4, 0.2], abs=1e-12) and v == pytest.approx([0.3, 0.0])  # the point, its velocity, at 1 s
+    # the point, with its velocity, at 1 s
+    assert q == pytest.approx([0.4, 0.2], abs=1e-12) and v == pytest.approx([0.3, 0.0])
     q, v = run(interp, 1000)
     assert q == [0.6, 0.2] and v == [0.0, 0.0] and not interp.in_motion
 
