@@ -129,6 +129,28 @@ def test_override_inside_a_non_mapping_is_refused(manager) -> None:
     assert info.value.value == "joint1"
 
 
+def test_numbers_in_files_read_as_yaml_1_2(manager, tmp_path) -> None:
+    """A controller file's ``p: 1e3`` is a number (PyYAML's YAML 1.1 alone reads a string)."""
+    path = tmp_path / "gains.yaml"
+    path.write_text(f"{NAMESPACE}:\n  {POS}:\n    type: {POSITION_TYPE}\n    joint: joint1\n"
+                    "    pid: {p: 1e3, i: .5, d: 2.5E+1, i_clamp: 1_000}\n")
+    assert read_yaml(path)[NAMESPACE][POS]["pid"] == {"p": 1000.0, "i": 0.5, "d": 25.0, "i_clamp": 1000}
+    manager.load_file(path)
+    gains = manager.load(POS).pid.gains
+    assert (gains.p, gains.i, gains.d, gains.i_clamp_max) == (1000.0, 0.5, 25.0, 1000.0)
+
+
+def test_quoted_numbers_in_files_stay_strings_and_are_refused(manager, tmp_path) -> None:
+    path = tmp_path / "gains.yaml"
+    path.write_text(f"{NAMESPACE}:\n  {POS}:\n    type: {POSITION_TYPE}\n    joint: joint1\n"
+                    "    pid: {p: '1e3'}\n")
+    manager.load_file(path)
+    with pytest.raises(ConfigError) as info:
+        manager.load(POS)
+    assert info.value.field == f"{NAMESPACE}.{POS}.pid.p" and info.value.value == "1e3"
+    assert "must be a number" in info.value.message
+
+
 def test_set_dotted_creates_mappings() -> None:
     tree: dict = {"a": {"b": 1}}
     set_dotted(tree, "a.c.d", 2, source=None)

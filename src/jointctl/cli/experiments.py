@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from jointctl.cli.common import positive_speed
+from jointctl.cli.common import SET_VALUES, positive_speed
 from jointctl.errors import JointCtlError
 
 
@@ -20,7 +20,7 @@ def add_parsers(sub) -> None:
     run.add_argument("--out", type=Path, help="output folder (default: out/<scenario name>)")
     run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scenario field, e.g. gravity=-5 or "
-                          "controllers.joint1_position_controller.pid.p=800 (repeatable)")
+                          f"controllers.joint1_position_controller.pid.p=1e3; {SET_VALUES}")
     run.add_argument("--realtime", action="store_true", help="pace the loop to the wall clock")
     run.add_argument("--speed", type=float, default=1.0,
                      help="with --realtime: loop time per wall-clock time (default 1.0)")

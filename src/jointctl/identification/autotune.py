@@ -32,6 +32,7 @@ import numpy as np
 import yaml
 from scipy.optimize import fsolve
 
+from jointctl.control.manager import read_yaml
 from jointctl.errors import ConfigError
 from jointctl.identification.frequency_response import (LoopModel, _crossing, loop_controller, measure,
                                                          measure_servoed, model_plant, plant_of, servo_reference)
@@ -165,7 +166,7 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
         result["robot"] = _check_on_robot(scenario_for, controller_name, result["gains"], loop, step, bandwidth_hz)
     if out_dir is not None:
         source = Path(scenario.controller_file)
-        _write(out_dir, source.name, yaml.safe_load(source.read_text()), controller_name, result)
+        _write(out_dir, source.name, read_yaml(source), controller_name, result)
     return result
 
 
