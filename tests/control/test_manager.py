@@ -173,6 +173,35 @@ def test_unknown_controller_type_is_refused(manager, write_yaml) -> None:
     assert "mystery" not in {c.name for c in manager.active}
 
 
+def test_a_misspelt_joint_key_is_named_before_the_missing_joint(manager, write_yaml) -> None:
+    path = write_yaml({NAMESPACE: {POS: {"type": POSITION_TYPE, "jont": "joint1", "pid": {"p": 400.0}}}})
+    manager.load_file(path)
+    with pytest.raises(ConfigError) as info:
+        manager.start([POS])
+    assert str(info.value) == (f"{path}: {NAMESPACE}.{POS}.jont: unknown field (did you mean 'joint'?) "
+                               "(got 'joint1')")
+    assert manager.active == ()
+
+
+@pytest.mark.parametrize(("name", "entry", "typo", "message"), [
+    (POS, {"type": POSITION_TYPE, "joint": "joint1", "feed_forward": {"gravity": True}}, "feed_forward",
+     "unknown field (did you mean 'feedforward'? known: feedforward, joint, pid, type)"),
+    (VEL, {"type": "effort_controllers/JointVelocityController", "joint": "joint1", "pid": {"p": 1.0},
+           "command_timeout": 0.5}, "command_timeout",
+     "unknown field (did you mean 'command_timeout_s'? known: command_timeout_s, joint, pid, type)"),
+])
+def test_unknown_keys_list_what_that_controller_accepts(manager, write_yaml, name, entry, typo, message) -> None:
+    """The known keys are the controller's own: a position controller's include feedforward (and pid,
+    given or not); a velocity controller's do not include feedforward."""
+    path = write_yaml({NAMESPACE: {name: entry}})
+    manager.load_file(path)
+    with pytest.raises(ConfigError) as info:
+        manager.start([name])
+    assert info.value.field == f"{NAMESPACE}.{name}.{typo}"
+    assert info.value.message == message
+    assert manager.active == ()
+
+
 @pytest.mark.parametrize("joint", ["joint7", "ft_sensor_jnt", "glue_robot_to_world"])
 def test_controller_joint_not_movable_in_the_model_is_refused(manager, write_yaml, joint) -> None:
     path = write_yaml({NAMESPACE: {POS: {"type": POSITION_TYPE, "joint": joint,

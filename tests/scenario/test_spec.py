@@ -108,6 +108,14 @@ def test_bad_field_is_refused_naming_file_field_and_value(write_scenario, change
     assert value in message
 
 
+def test_a_misspelt_scenario_field_names_the_nearest_field(write_scenario):
+    path = write_scenario(step_scenario(gravty=-5))
+    with pytest.raises(ConfigError) as err:
+        load_scenario(path)
+    assert err.value.field == "gravty" and err.value.value == -5
+    assert err.value.message.startswith("unknown field (did you mean 'gravity'? known: ")
+
+
 def test_missing_duration_is_required(write_scenario):
     data = step_scenario()
     del data["duration_s"]

@@ -39,6 +39,7 @@ from typing import Any
 import yaml
 
 from jointctl.control.manager import load_yaml_text, read_yaml, set_dotted
+from jointctl.control.params import unknown_field_message
 from jointctl.errors import ConfigError
 from jointctl.paths import robots_dir, scenarios_dir
 from jointctl.sim.objects import ObjectSpec, object_from_config
@@ -176,7 +177,7 @@ class _Validator:
         raw = self.raw
         for key in raw:
             if key not in _KEYS:
-                raise self.error(f"unknown field (known: {', '.join(sorted(_KEYS))})", str(key), raw[key])
+                raise self.error(unknown_field_message(str(key), _KEYS), str(key), raw[key])
         robot = self.robot_files(raw.get("robot"))
         controller_file = self.controller_file(robot)
         overrides = self.mapping("controllers")
