@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from jointctl.errors import ConfigError
-from jointctl.identification.frequency_response import LoopModel, bode, measure
+from jointctl.identification.frequency_response import LoopModel, analyse, bode, measure, write_bode
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.scenario.spec import scenario_for_robot
 
@@ -91,3 +91,22 @@ def test_bad_requests_are_refused_naming_the_field(kwargs, error, field) -> None
         bode(scenario_for_robot("one_dof", "position"), args.pop("controller_name"), args.pop("frequencies_hz"),
              **args)
     assert info.value.field == field
+
+
+def test_bode_writes_strict_json_with_null_for_what_it_did_not_measure(tmp_path) -> None:
+    """A sweep that never falls through -3 dB has no bandwidth (NaN): metrics.json says null, not NaN."""
+    import json
+
+    from jointctl.identification.frequency_response import Point
+
+    points = [Point(f, 0.0, -10.0 * k) for k, f in enumerate((0.5, 1.0, 2.0))]
+    result = analyse(points, None)
+    assert math.isnan(result["bandwidth_hz"])
+    write_bode(tmp_path, {**result, "gain_margin_db": math.inf}, "flat")
+
+    def refuse(constant):
+        raise ValueError(constant)
+
+    written = json.loads((tmp_path / "metrics.json").read_text(), parse_constant=refuse)
+    assert written["bandwidth_hz"] is None and written["gain_margin_db"] is None
+    assert written["gain_db"] == [0.0, 0.0, 0.0]

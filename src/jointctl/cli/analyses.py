@@ -11,6 +11,7 @@ from pathlib import Path
 
 from jointctl.cli.common import SET_VALUES, industrial_hardware, loop_hardware_arguments
 from jointctl.errors import JointCtlError
+from jointctl.recording.metrics_file import metrics_json
 
 
 def add_parsers(sub) -> None:
@@ -110,7 +111,7 @@ def _identify(args: argparse.Namespace) -> int:
         _, metrics = identify_on_robot(scenario, args.joint, out_dir=args.out, amplitude=args.amplitude,
                                        duration_s=args.duration_s, f_start_hz=args.f_start_hz,
                                        f_end_hz=args.f_end_hz, fit_friction=friction)
-    print(json.dumps(metrics, indent=2))
+    print(metrics_json(metrics))
     print(f"wrote {args.out}/", file=sys.stderr)
     return 0
 
@@ -169,7 +170,7 @@ def _bode(args: argparse.Namespace) -> int:
     shown = {k: v for k, v in result.items() if not isinstance(v, (list, dict))}
     if "model" in result:
         shown["model"] = {k: v for k, v in result["model"].items() if not isinstance(v, list)}
-    print(json.dumps(shown, indent=2, default=float))
+    print(metrics_json(shown))
     print(f"wrote {args.out}/", file=sys.stderr)
     return 0
 
@@ -277,7 +278,7 @@ def _autotune(args: argparse.Namespace) -> int:
         result = autotune(lambda overrides: _loop_scenario(args, overrides), args.controller,
                           bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step, plant=plant, out_dir=args.out,
                           settling_s=settling_s)
-    print(json.dumps(result, indent=2, default=float))
+    print(metrics_json(result))
     print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0
 

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 from jointctl.cli.common import SET_VALUES, positive_speed
 from jointctl.errors import JointCtlError
+from jointctl.recording.metrics_file import metrics_json
 
 
 def add_parsers(sub) -> None:
@@ -69,7 +69,7 @@ def _run(args: argparse.Namespace) -> int:
     metrics = run_scenario(scenario, out, realtime=args.realtime or args.view, speed=args.speed,
                            package_path=tuple(args.package_path), video=_video_settings(args), view=args.view)
     shown = {k: v for k, v in metrics.items() if k not in ("plant",)}
-    print(json.dumps(shown, indent=2))
+    print(metrics_json(shown))
     print(f"wrote {out}/", file=sys.stderr)
     return 0
 

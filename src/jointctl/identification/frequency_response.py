@@ -23,12 +23,13 @@ beside the measurement, and its loop transfer function gives the gain and phase 
 **Figures of merit** (``metrics.json``): per frequency, gain [dB] and phase [deg] measured and
 modelled; the magnitude peak (resonance) and its frequency; the -3 dB bandwidth; the frequency
 where the measured phase crosses -90° (a position loop: the natural frequency, shifted by the
-hold's ``ω·h/2``); the model's gain and phase margins.
+hold's ``ω·h/2``); the model's gain and phase margins. ``metrics.json`` is strict JSON: a figure that is
+not a finite number is ``null``, meaning not measured or unbounded (no -3 dB or -90° crossing inside the
+swept range, an infinite margin; :mod:`jointctl.recording.metrics_file`).
 """
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from dataclasses import dataclass
@@ -40,6 +41,7 @@ from jointctl.control.joint_controllers import JointPositionController, JointVel
 from jointctl.errors import ConfigError
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.model.loader import load_robot_model
+from jointctl.recording.metrics_file import write_metrics
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
 from jointctl.metrics.response import sinusoid_response
@@ -374,7 +376,8 @@ def _crossing(f: np.ndarray, values: np.ndarray, level: float) -> float:
 
 
 def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
-    """``bode.png`` (measured points, model curve) and ``metrics.json`` into ``out_dir``."""
+    """``bode.png`` (measured points, model curve) and ``metrics.json`` (strict JSON, non-finite figures as
+    null: not measured or unbounded) into ``out_dir``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -405,7 +408,7 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
-    (out / "metrics.json").write_text(json.dumps(result, indent=2, default=float))
+    write_metrics(out, result)  # strict JSON: a figure not measured or unbounded is null
     return path
 
 
