@@ -348,20 +348,43 @@ def model_plant(robot, joint: str, pose: dict) -> tuple[float, float]:
 
 
 def analyse(points: list[Point], model: LoopModel | None) -> dict:
-    """Figures of merit of measured ``points`` (and the model's, when given)."""
+    """Figures of merit of measured ``points`` (and the model's, when given).
+
+    ``resonance_hz`` and ``resonance_peak_db`` are the frequency and gain of the largest measured gain
+    when it is a peak inside the swept range (above the gains at both ends of the range), and None (null
+    in ``metrics.json``) otherwise: when the largest gain is at the lowest or the highest frequency
+    swept, the sweep has found no peak, only the edge of its range: a well-damped loop's gain falls from
+    the lowest frequency on (its largest gain is at the first test frequency, 0.5 Hz by default, which
+    is no resonance), and a gain still rising at the highest frequency peaks beyond the range (sweep
+    higher to find it).
+    """
     f = np.array([p.frequency_hz for p in points])
     gain = np.array([p.gain_db for p in points])
     phase = np.unwrap(np.radians([p.phase_deg for p in points]))
     phase = np.degrees(phase)
-    peak = int(np.argmax(gain))
+    peak = resonance_peak(gain)
     result = {"frequencies_hz": f.tolist(), "gain_db": gain.tolist(), "phase_deg": phase.tolist(),
-              "resonance_peak_db": float(gain[peak]), "resonance_hz": float(f[peak]),
+              "resonance_peak_db": None if peak is None else float(gain[peak]),
+              "resonance_hz": None if peak is None else float(f[peak]),
               "bandwidth_hz": _crossing(f, gain, -3.0), "phase_minus_90_hz": _crossing(f, phase, -90.0)}
     if model is not None:
         model_gain, model_phase = model.response(f)
         result["model"] = {"gain_db": model_gain.tolist(), "phase_deg": model_phase.tolist(), **model.margins(),
                            "mass": model.mass, "damping": model.damping, "p": model.p, "i": model.i, "d": model.d}
     return result
+
+
+def resonance_peak(gain_db) -> int | None:
+    """The index of the largest gain when it lies inside the swept range, strictly above the gains at
+    both ends; None when the largest gain is at (or level with) either end: no resonance peak was
+    measured (see :func:`analyse`)."""
+    gain = np.asarray(gain_db, dtype=float)
+    if gain.size < 3:
+        return None
+    peak = int(np.argmax(gain))
+    if not (0 < peak < gain.size - 1 and gain[peak] > gain[0] and gain[peak] > gain[-1]):
+        return None
+    return peak
 
 
 def _crossing(f: np.ndarray, values: np.ndarray, level: float) -> float:
@@ -413,4 +436,5 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
 
 
 __all__ = ["LoopModel", "Point", "analyse", "bode", "compare", "loop_controller", "measure", "measure_in_session",
-           "measure_servoed", "model_plant", "plant_of", "servo_reference", "sweep", "write_bode"]
+           "measure_servoed", "model_plant", "plant_of", "resonance_peak", "servo_reference", "sweep",
+           "write_bode"]
