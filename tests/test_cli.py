@@ -53,7 +53,7 @@ def test_run_writes_trace_metrics_and_figures(tmp_path):
 def test_run_with_gravity_and_gain_overrides(tmp_path, write_scenario):
     scenario = write_scenario(step_scenario(duration_s=1.5, analysis={"type": "step_response", "joint": "joint1"}))
     result = jointctl("run", scenario, "--out", tmp_path / "o", "--set", "gravity=-5",
-                      "--set", "controllers.joint1_position_controller.pid.p=800")
+                      "--set", "controllers.joint1_position_controller.pid.p=8e2")  # YAML 1.2's number
     assert result.returncode == 0, result.stderr
     metrics = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert metrics["steady_state_error_m"] == pytest.approx(1.01 * 5 / 800, rel=0.01)

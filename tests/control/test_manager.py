@@ -129,6 +129,28 @@ def test_override_inside_a_non_mapping_is_refused(manager) -> None:
     assert info.value.value == "joint1"
 
 
+def test_numbers_in_files_read_as_yaml_1_2(manager, tmp_path) -> None:
+    """A controller file's ``p: 1e3`` is a number (PyYAML's YAML 1.1 alone reads a string)."""
+    path = tmp_path / "gains.yaml"
+    path.write_text(f"{NAMESPACE}:\n  {POS}:\n    type: {POSITION_TYPE}\n    joint: joint1\n"
+                    "    pid: {p: 1e3, i: .5, d: 2.5E+1, i_clamp: 1_000}\n")
+    assert read_yaml(path)[NAMESPACE][POS]["pid"] == {"p": 1000.0, "i": 0.5, "d": 25.0, "i_clamp": 1000}
+    manager.load_file(path)
+    gains = manager.load(POS).pid.gains
+    assert (gains.p, gains.i, gains.d, gains.i_clamp_max) == (1000.0, 0.5, 25.0, 1000.0)
+
+
+def test_quoted_numbers_in_files_stay_strings_and_are_refused(manager, tmp_path) -> None:
+    path = tmp_path / "gains.yaml"
+    path.write_text(f"{NAMESPACE}:\n  {POS}:\n    type: {POSITION_TYPE}\n    joint: joint1\n"
+                    "    pid: {p: '1e3'}\n")
+    manager.load_file(path)
+    with pytest.raises(ConfigError) as info:
+        manager.load(POS)
+    assert info.value.field == f"{NAMESPACE}.{POS}.pid.p" and info.value.value == "1e3"
+    assert "must be a number" in info.value.message
+
+
 def test_set_dotted_creates_mappings() -> None:
     tree: dict = {"a": {"b": 1}}
     set_dotted(tree, "a.c.d", 2, source=None)
@@ -149,6 +171,35 @@ def test_unknown_controller_type_is_refused(manager, write_yaml) -> None:
     assert err.source == str(path)
     assert POSITION_TYPE in err.message  # lists the known types
     assert "mystery" not in {c.name for c in manager.active}
+
+
+def test_a_misspelt_joint_key_is_named_before_the_missing_joint(manager, write_yaml) -> None:
+    path = write_yaml({NAMESPACE: {POS: {"type": POSITION_TYPE, "jont": "joint1", "pid": {"p": 400.0}}}})
+    manager.load_file(path)
+    with pytest.raises(ConfigError) as info:
+        manager.start([POS])
+    assert str(info.value) == (f"{path}: {NAMESPACE}.{POS}.jont: unknown field (did you mean 'joint'?) "
+                               "(got 'joint1')")
+    assert manager.active == ()
+
+
+@pytest.mark.parametrize(("name", "entry", "typo", "message"), [
+    (POS, {"type": POSITION_TYPE, "joint": "joint1", "feed_forward": {"gravity": True}}, "feed_forward",
+     "unknown field (did you mean 'feedforward'? known: feedforward, joint, pid, type)"),
+    (VEL, {"type": "effort_controllers/JointVelocityController", "joint": "joint1", "pid": {"p": 1.0},
+           "command_timeout": 0.5}, "command_timeout",
+     "unknown field (did you mean 'command_timeout_s'? known: command_timeout_s, joint, pid, type)"),
+])
+def test_unknown_keys_list_what_that_controller_accepts(manager, write_yaml, name, entry, typo, message) -> None:
+    """The known keys are the controller's own: a position controller's include feedforward (and pid,
+    given or not); a velocity controller's do not include feedforward."""
+    path = write_yaml({NAMESPACE: {name: entry}})
+    manager.load_file(path)
+    with pytest.raises(ConfigError) as info:
+        manager.start([name])
+    assert info.value.field == f"{NAMESPACE}.{name}.{typo}"
+    assert info.value.message == message
+    assert manager.active == ()
 
 
 @pytest.mark.parametrize("joint", ["joint7", "ft_sensor_jnt", "glue_robot_to_world"])

@@ -149,7 +149,49 @@ def test_reject_unknown_names_the_first_unread_key() -> None:
     err = refusal(p.reject_unknown)
     assert err.field == f"{FIELD}.jiont"
     assert err.value == "joint2"
-    assert "unknown parameter" in err.message and "joint" in err.message
+    assert err.message == "unknown field (did you mean 'joint'? known: joint)"
+
+
+def test_reject_unknown_lists_keys_asked_about_with_has() -> None:
+    """An optional block the controller asks about (``has("feedforward")``) is a key it accepts."""
+    p = params(joint="joint1", pidd={"p": 1})
+    p.string("joint")
+    assert not p.has("pid") and not p.has("feedforward")
+    err = refusal(lambda: p.reject_unknown({"type"}))
+    assert err.field == f"{FIELD}.pidd"
+    assert err.message == "unknown field (did you mean 'pid'? known: feedforward, joint, pid, type)"
+
+
+def test_reject_unknown_without_a_near_key_only_lists_them() -> None:
+    p = params(joint="joint1", gains={"p": 1})
+    p.string("joint")
+    err = refusal(p.reject_unknown)
+    assert err.message == "unknown field (known: joint)"
+
+
+@pytest.mark.parametrize("typo", ["jont", "jiont", "Joint", "joitn", "jnt", "joints"])
+def test_a_misspelt_required_key_is_reported_as_unknown_not_missing(typo) -> None:
+    p = params(type="x", **{typo: "joint1"}, pid={"p": 1.0})
+    p.string("type")
+    err = refusal(lambda: p.string("joint"))
+    assert err.field == f"{FIELD}.{typo}"
+    assert err.value == "joint1"
+    assert err.message == "unknown field (did you mean 'joint'?)"
+
+
+@pytest.mark.parametrize("other", ["wrist_joints", "joint_damping", "gains", "jointed_arm"])
+def test_a_different_key_beside_a_missing_required_one_is_not_taken_for_a_typo(other) -> None:
+    """A key that merely shares a word with the missing one may be read later: still "is required"."""
+    p = params(**{other: 1})
+    err = refusal(lambda: p.raw("joints" if other == "wrist_joints" else "joint"))
+    assert "is required" in err.message and err.field in (f"{FIELD}.joint", f"{FIELD}.joints")
+
+
+def test_a_key_already_read_is_not_taken_for_a_typo() -> None:
+    p = params(joints=["a"])
+    p.raw("joints")
+    err = refusal(lambda: p.raw("joint"))
+    assert err.field == f"{FIELD}.joint" and "is required" in err.message
 
 
 def test_reject_unknown_accepts_read_and_allowed_keys() -> None:

@@ -213,7 +213,7 @@ def test_from_params_refuses_unknown_keys(typo: str) -> None:
     assert err.field == f"one_DOF_robot.ctl.pid.{typo}"
     assert err.value == 3
     assert err.source == "gains.yaml"
-    assert "unknown parameter" in err.message
+    assert "unknown field" in err.message
     assert f"one_DOF_robot.ctl.pid.{typo}" in str(err)
 
 

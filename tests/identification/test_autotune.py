@@ -129,3 +129,20 @@ def test_the_arms_joint1_around_the_pre_pose_meets_the_same_spec() -> None:
     assert result["robot"]["step_zeta"] == pytest.approx(0.7, rel=0.1)
     assert result["robot"]["bandwidth_hz"] == pytest.approx(5.0, rel=0.1)
     assert result["gains"]["p"] * 0.01 + result["gravity_load"] <= 1300.0  # the step stays within the effort limit
+
+
+def test_autotune_writes_strict_json_with_null_for_what_it_did_not_measure(tmp_path) -> None:
+    import json
+
+    from jointctl.identification.autotune import _write
+
+    result = {"loop": "position", "spec": {"bandwidth_hz": 5.0, "zeta": 0.7}, "gains": {"p": 400.0, "d": 10.0},
+              "model": {"gain_margin_db": math.inf, "overshoot_pct": math.nan}}
+    _write(tmp_path, "gains.yaml", {"ns": {"ctl": {"type": "x", "pid": {"p": 1.0}}}}, "ctl", result)
+
+    def refuse(constant):
+        raise ValueError(constant)
+
+    written = json.loads((tmp_path / "metrics.json").read_text(), parse_constant=refuse)
+    assert written["model"] == {"gain_margin_db": None, "overshoot_pct": None}
+    assert yaml.safe_load((tmp_path / "gains.yaml").read_text())["ns"]["ctl"]["pid"] == {"p": 400.0, "d": 10.0}

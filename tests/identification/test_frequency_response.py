@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from jointctl.errors import ConfigError
-from jointctl.identification.frequency_response import LoopModel, bode, measure
+from jointctl.identification.frequency_response import LoopModel, analyse, bode, measure, write_bode
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.scenario.spec import scenario_for_robot
 
@@ -91,3 +91,73 @@ def test_bad_requests_are_refused_naming_the_field(kwargs, error, field) -> None
         bode(scenario_for_robot("one_dof", "position"), args.pop("controller_name"), args.pop("frequencies_hz"),
              **args)
     assert info.value.field == field
+
+
+def test_bode_writes_strict_json_with_null_for_what_it_did_not_measure(tmp_path) -> None:
+    """A sweep that never falls through -3 dB has no bandwidth (NaN): metrics.json says null, not NaN."""
+    import json
+
+    from jointctl.identification.frequency_response import Point
+
+    points = [Point(f, 0.0, -10.0 * k) for k, f in enumerate((0.5, 1.0, 2.0))]
+    result = analyse(points, None)
+    assert math.isnan(result["bandwidth_hz"])
+    write_bode(tmp_path, {**result, "gain_margin_db": math.inf}, "flat")
+
+    def refuse(constant):
+        raise ValueError(constant)
+
+    written = json.loads((tmp_path / "metrics.json").read_text(), parse_constant=refuse)
+    assert written["bandwidth_hz"] is None and written["gain_margin_db"] is None
+    assert written["gain_db"] == [0.0, 0.0, 0.0]
+
+
+GRID_HZ = np.logspace(math.log10(0.5), math.log10(20.0), 20)  # bode's default sweep
+
+
+def second_order_points(fn_hz: float, zeta: float, frequencies=GRID_HZ):
+    """Synthetic measurements of ``ωn² / (s² + 2ζωn s + ωn²)``: gain [dB], phase [deg]."""
+    from jointctl.identification.frequency_response import Point
+
+    r = np.asarray(frequencies) / fn_hz
+    h = 1.0 / (1.0 - r ** 2 + 2j * zeta * r)
+    return [Point(float(f), float(20 * np.log10(abs(x))), float(np.degrees(np.angle(x))))
+            for f, x in zip(frequencies, h)]
+
+
+def test_a_peak_inside_the_sweep_is_the_resonance() -> None:
+    zeta, fn = 0.2, 3.0
+    result = analyse(second_order_points(fn, zeta), None)
+    expected_hz = fn * math.sqrt(1 - 2 * zeta ** 2)
+    nearest = GRID_HZ[np.argmin(np.abs(GRID_HZ - expected_hz))]
+    assert result["resonance_hz"] == pytest.approx(nearest)
+    assert result["resonance_peak_db"] == pytest.approx(max(p.gain_db for p in second_order_points(fn, zeta)))
+    assert result["resonance_peak_db"] > 6.0
+
+
+@pytest.mark.parametrize(("fn_hz", "zeta", "why"), [
+    (3.0, 1.2, "overdamped: the gain falls from the first test frequency on"),
+    (3.0, 0.7071, "maximally flat: no peak above the low-frequency gain"),
+    (60.0, 0.2, "the peak lies above the swept range: the gain still rises at 20 Hz"),
+])
+def test_no_peak_inside_the_sweep_is_no_resonance(fn_hz, zeta, why, tmp_path) -> None:
+    import json
+
+    points = second_order_points(fn_hz, zeta)
+    gains = [p.gain_db for p in points]
+    assert int(np.argmax(gains)) in (0, len(gains) - 1), why
+    result = analyse(points, None)
+    assert result["resonance_hz"] is None and result["resonance_peak_db"] is None, why
+    write_bode(tmp_path, result, why)
+    written = json.loads((tmp_path / "metrics.json").read_text())
+    assert written["resonance_hz"] is None and written["resonance_peak_db"] is None
+
+
+@pytest.mark.parametrize(("gains", "peak"), [
+    ([0.0, 3.0, 1.0], 1), ([0.0, 0.0, -1.0], None), ([-1.0, 0.0, 0.0], None), ([1.0, 1.0, 1.0], None),
+    ([0.0, 2.0, 2.0, 0.0], 1), ([5.0, 1.0, 4.0], None), ([1.0, 2.0], None), ([], None),
+])
+def test_resonance_peak_only_inside_the_range(gains, peak) -> None:
+    from jointctl.identification.frequency_response import resonance_peak
+
+    assert resonance_peak(gains) == peak

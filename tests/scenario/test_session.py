@@ -85,8 +85,8 @@ def test_runtime_expression_errors_hold_the_last_value_and_are_counted(write_sce
 def test_metrics_json_is_strict_json_with_null_for_what_never_happened(tmp_path):
     import json
 
-    from jointctl.scenario.run import _json_ready
+    from jointctl.recording.metrics_file import json_ready
 
-    assert _json_ready({"a": float("nan"), "b": [1.0, float("inf")], "c": {"d": -float("inf")}}) == {
+    assert json_ready({"a": float("nan"), "b": [1.0, float("inf")], "c": {"d": -float("inf")}}) == {
         "a": None, "b": [1.0, None], "c": {"d": None}}
-    json.dumps(_json_ready({"x": float("nan")}), allow_nan=False)
+    json.dumps(json_ready({"x": float("nan")}), allow_nan=False)

@@ -42,6 +42,25 @@ def test_parse_override_reads_yaml_values():
     assert parse_override("g=[0, 0, -5]") == ("g", [0, 0, -5])
 
 
+@pytest.mark.parametrize(("text", "expected"), [
+    ("1e3", 1000.0), ("1E-3", 0.001), ("-2.5e+2", -250.0), ("+2e2", 200.0), (".5", 0.5), ("-.5", -0.5),
+    ("1.", 1.0), ("1_000", 1000), ("1_000.5", 1000.5), ("2.5E3", 2500.0), ("800", 800),
+    ("'1e3'", "1e3"), ("e3", "e3"), ("1e", "1e"), ("1e3x", "1e3x"), ("1.2.3", "1.2.3"),
+])
+def test_override_numbers_read_as_written(text, expected):
+    """YAML 1.1 (PyYAML) reads 1e3, 1E-3 and -.5 as strings; a user means numbers (YAML 1.2)."""
+    key, value = parse_override(f"controllers.c.pid.p={text}")
+    assert key == "controllers.c.pid.p"
+    assert value == expected and type(value) is type(expected)
+
+
+def test_a_gain_in_exponent_notation_reaches_the_controller():
+    scenario = load_scenario("one_dof_step", ["controllers.joint1_position_controller.pid.p=1e3",
+                                              "controllers.joint1_position_controller.pid.d=2.5E1"])
+    assert scenario.controller_overrides["joint1_position_controller.pid.p"] == 1000.0
+    assert scenario.controller_overrides["joint1_position_controller.pid.d"] == 25.0
+
+
 @pytest.mark.parametrize("item", ["novalue", "=3", "a..b=1", ".a=1"])
 def test_malformed_override_is_refused(item):
     with pytest.raises(ConfigError) as err:
@@ -87,6 +106,14 @@ def test_bad_field_is_refused_naming_file_field_and_value(write_scenario, change
     assert str(path) in message
     assert f": {field}:" in message
     assert value in message
+
+
+def test_a_misspelt_scenario_field_names_the_nearest_field(write_scenario):
+    path = write_scenario(step_scenario(gravty=-5))
+    with pytest.raises(ConfigError) as err:
+        load_scenario(path)
+    assert err.value.field == "gravty" and err.value.value == -5
+    assert err.value.message.startswith("unknown field (did you mean 'gravity'? known: ")
 
 
 def test_missing_duration_is_required(write_scenario):

@@ -9,8 +9,9 @@ import json
 import sys
 from pathlib import Path
 
-from jointctl.cli.common import industrial_hardware, loop_hardware_arguments
+from jointctl.cli.common import SET_VALUES, industrial_hardware, loop_hardware_arguments
 from jointctl.errors import JointCtlError
+from jointctl.recording.metrics_file import metrics_json
 
 
 def add_parsers(sub) -> None:
@@ -24,7 +25,7 @@ def add_parsers(sub) -> None:
                           help="with a robot: the controller file whose position controller excites the joint "
                                "(default position)")
     identify.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                          help="override a scenario field, e.g. initial_positions.joint1=-0.3 (repeatable)")
+                          help=f"override a scenario field, e.g. initial_positions.joint1=-0.3; {SET_VALUES}")
     identify.add_argument("--joint-type", choices=("prismatic", "revolute", "continuous"),
                           help="with a trace or bag: the joint's type (default: read from --robot)")
     identify.add_argument("--robot", help="with a trace or bag: the built-in robot it was recorded on")
@@ -45,7 +46,7 @@ def add_parsers(sub) -> None:
                       help="with a robot: the controller file to load (default: position, or velocity for a "
                            "velocity controller's name)")
     bode.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                      help="override a scenario field (repeatable)")
+                      help=f"override a scenario field; {SET_VALUES}")
     bode.add_argument("--f-min-hz", type=float, default=0.5, help="lowest frequency (default 0.5 Hz)")
     bode.add_argument("--f-max-hz", type=float, default=20.0, help="highest frequency (default 20 Hz)")
     bode.add_argument("--points", type=int, default=20, help="frequencies, log-spaced (default 20)")
@@ -62,7 +63,7 @@ def add_parsers(sub) -> None:
     tune_gains.add_argument("--controllers", default=None, help="with a robot: the controller file (default: "
                                                                 "position, or velocity for a velocity controller)")
     tune_gains.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                            help="override a scenario field (repeatable)")
+                            help=f"override a scenario field; {SET_VALUES}")
     tune_gains.add_argument("--bandwidth-hz", type=float, help="closed-loop -3 dB bandwidth [Hz]")
     tune_gains.add_argument("--zeta", type=float, help="damping ratio of a position loop (default 0.7)")
     tune_gains.add_argument("--overshoot-pct", type=float,
@@ -110,7 +111,7 @@ def _identify(args: argparse.Namespace) -> int:
         _, metrics = identify_on_robot(scenario, args.joint, out_dir=args.out, amplitude=args.amplitude,
                                        duration_s=args.duration_s, f_start_hz=args.f_start_hz,
                                        f_end_hz=args.f_end_hz, fit_friction=friction)
-    print(json.dumps(metrics, indent=2))
+    print(metrics_json(metrics))
     print(f"wrote {args.out}/", file=sys.stderr)
     return 0
 
@@ -169,7 +170,7 @@ def _bode(args: argparse.Namespace) -> int:
     shown = {k: v for k, v in result.items() if not isinstance(v, (list, dict))}
     if "model" in result:
         shown["model"] = {k: v for k, v in result["model"].items() if not isinstance(v, list)}
-    print(json.dumps(shown, indent=2, default=float))
+    print(metrics_json(shown))
     print(f"wrote {args.out}/", file=sys.stderr)
     return 0
 
@@ -277,7 +278,7 @@ def _autotune(args: argparse.Namespace) -> int:
         result = autotune(lambda overrides: _loop_scenario(args, overrides), args.controller,
                           bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step, plant=plant, out_dir=args.out,
                           settling_s=settling_s)
-    print(json.dumps(result, indent=2, default=float))
+    print(metrics_json(result))
     print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0
 

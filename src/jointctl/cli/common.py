@@ -65,13 +65,18 @@ def industrial_arguments(parser: argparse.ArgumentParser) -> None:
                              "default: robot.yaml industrial.default_speed, else 0.1)")
 
 
+#: What ``--set KEY=VALUE`` accepts, said in every command's help.
+SET_VALUES = ("VALUE is YAML, numbers as written (800, 1_000, .5, 1e3, 1E-3, -2.5e+2), true/false, "
+              "[lists]; repeatable")
+
+
 def live_target_arguments(parser: argparse.ArgumentParser) -> None:
     """What serve and tune share: a robot and its controller file, or a scenario, run on the wall clock."""
     parser.add_argument("target", help="a built-in robot (with --controllers) or a scenario YAML / name")
     parser.add_argument("--controllers", default=None,
                         help="with a robot: which of its controller files to load and start (default position)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a scenario field (repeatable)")
+                        help=f"override a scenario field; {SET_VALUES}")
     parser.add_argument("--speed", type=float, default=1.0, help="loop time per wall-clock time (default 1.0)")
 
 

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from jointctl.cli.common import positive_speed
+from jointctl.cli.common import SET_VALUES, positive_speed
 from jointctl.errors import JointCtlError
+from jointctl.recording.metrics_file import metrics_json
 
 
 def add_parsers(sub) -> None:
@@ -20,7 +20,7 @@ def add_parsers(sub) -> None:
     run.add_argument("--out", type=Path, help="output folder (default: out/<scenario name>)")
     run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scenario field, e.g. gravity=-5 or "
-                          "controllers.joint1_position_controller.pid.p=800 (repeatable)")
+                          f"controllers.joint1_position_controller.pid.p=1e3; {SET_VALUES}")
     run.add_argument("--realtime", action="store_true", help="pace the loop to the wall clock")
     run.add_argument("--speed", type=float, default=1.0,
                      help="with --realtime: loop time per wall-clock time (default 1.0)")
@@ -69,7 +69,7 @@ def _run(args: argparse.Namespace) -> int:
     metrics = run_scenario(scenario, out, realtime=args.realtime or args.view, speed=args.speed,
                            package_path=tuple(args.package_path), video=_video_settings(args), view=args.view)
     shown = {k: v for k, v in metrics.items() if k not in ("plant",)}
-    print(json.dumps(shown, indent=2))
+    print(metrics_json(shown))
     print(f"wrote {out}/", file=sys.stderr)
     return 0
 

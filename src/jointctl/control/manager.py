@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,8 +36,46 @@ from jointctl.hardware.loan import HardwareLoan
 from jointctl.model.robot_model import RobotModel
 
 
+class YamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, reading numbers as YAML 1.2 (and every user) does.
+
+    YAML 1.1, which PyYAML implements, wants a dot in a float and a sign in its exponent, so
+    ``1e3``, ``1E-3``, ``5e+2`` and ``-.5`` come back as strings and a gain ``p: 1e3`` is refused
+    as "must be a number". Here a plain scalar is a float when it reads as one: digits with an
+    optional sign, an optional fraction (``1.5``, ``1.``, ``.5``) and an optional exponent with an
+    optional sign (``1e3``, ``2.5E-3``, ``-2.5e+2``); ``_`` may group digits (``1_000.5``), as YAML
+    1.1 allows; ``.inf``, ``-.inf`` and ``.nan`` stay floats (the number checks then refuse them).
+    Whole numbers stay integers (``1_000`` is 1000), quoted values stay strings (``"1e3"``), and
+    everything else is YAML 1.1 as before. Every YAML jointctl reads (controller files, scenarios,
+    robot manifests, trajectories, ``--set`` values) goes through this loader.
+    """
+
+
+_FLOAT_TAG = "tag:yaml.org,2002:float"
+_DIGITS = r"[0-9][0-9_]*"
+_EXPONENT = r"[eE][-+]?[0-9]+"
+YamlLoader.yaml_implicit_resolvers = {
+    first: [(tag, regexp) for tag, regexp in resolvers if tag != _FLOAT_TAG]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+YamlLoader.add_implicit_resolver(
+    _FLOAT_TAG,
+    re.compile(rf"""^(?:[-+]?{_DIGITS}\.[0-9_]*(?:{_EXPONENT})?
+                    |[-+]?{_DIGITS}{_EXPONENT}
+                    |[-+]?\.[0-9][0-9_]*(?:{_EXPONENT})?
+                    |[-+]?{_DIGITS}(?::[0-5]?[0-9])+\.[0-9_]*
+                    |[-+]?\.(?:inf|Inf|INF)
+                    |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
+
+
+def load_yaml_text(text: str) -> Any:
+    """Parse YAML ``text`` with :class:`YamlLoader` (raises ``yaml.YAMLError`` when it cannot)."""
+    return yaml.load(text, Loader=YamlLoader)  # noqa: S506 - a SafeLoader subclass
+
+
 def read_yaml(path: str | Path) -> Any:
-    """Parse a YAML file; ConfigError naming the file and line when it cannot."""
+    """Parse a YAML file (numbers read as in :class:`YamlLoader`); ConfigError naming the file and
+    line when it cannot."""
     path = Path(path)
     try:
         text = path.read_text()
@@ -45,7 +84,7 @@ def read_yaml(path: str | Path) -> Any:
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot read: {exc}", source=str(path)) from None
     try:
-        return yaml.safe_load(text)
+        return load_yaml_text(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
@@ -408,4 +447,4 @@ def _upstream_first(controllers: list[Controller]) -> list[Controller]:
     return ordered
 
 
-__all__ = ["ControllerFailure", "ControllerManager", "read_yaml", "set_dotted"]
+__all__ = ["ControllerFailure", "ControllerManager", "YamlLoader", "load_yaml_text", "read_yaml", "set_dotted"]

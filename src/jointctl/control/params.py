@@ -4,17 +4,28 @@
 from (file and dotted field path) so every refusal reads like
 ``config/gains.yaml: one_DOF_robot.joint1_position_controller.pid.p: must not
 be negative (got -5.0)``.
+
+A key the controller does not know is reported before anything else it would say about the
+entry: ``...joint1_position_controller.jont: unknown field (did you mean 'joint'?)`` rather than
+``joint: is required``. The keys a controller knows are the ones it asks about (read, or asked
+after with :meth:`Params.has`, such as an optional ``feedforward`` block) plus those it lists in
+:meth:`Params.reject_unknown`, so the list in the message is what that controller accepts.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import difflib
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 from jointctl.errors import ConfigError
 from jointctl.validate import checked_number, real_number
 
 _MISSING = object()
+#: How alike (difflib's ratio) a given key and a missing required key must be for the given one to be
+#: reported as its misspelling: one dropped, doubled, swapped or wrong letter in a name of 4 letters or
+#: more is 0.75 or above; distinct names that share a word (``joint_damping``/``damping``, 0.7) are below.
+MISSPELLING_RATIO = 0.75
 
 
 class Params:
@@ -27,6 +38,7 @@ class Params:
         self.values = dict(values)
         self.source = source
         self.field = field
+        #: Every key the controller asked about (read or :meth:`has`): the keys it accepts.
         self._used: set[str] = set()
 
     def path(self, key: str) -> str:
@@ -38,15 +50,29 @@ class Params:
         return ConfigError(message, source=self.source, field=self.path(key), value=value)
 
     def has(self, key: str) -> bool:
+        """Whether ``key`` is given; asking makes it a known key (an optional block the controller accepts)."""
+        self._used.add(key)
         return key in self.values
 
     def raw(self, key: str, default: Any = _MISSING) -> Any:
         self._used.add(key)
         if key not in self.values:
             if default is _MISSING:
+                self._reject_misspelling_of(key)
                 raise self.error("is required", key)
             return default
         return self.values[key]
+
+    def _reject_misspelling_of(self, key: str) -> None:
+        """Before saying the required ``key`` is missing: a given key not asked about yet that reads
+        like ``key`` (``jont`` or ``jiont`` for ``joint``: a difflib ratio of at least
+        :data:`MISSPELLING_RATIO`, about one slip of the keyboard) is the user's spelling of it,
+        reported as unknown. Names that only share a word (``wrist_joints`` beside a missing
+        ``joints``, 0.67) are other fields the controller may read later, not misspellings."""
+        for given in self.values:
+            if (isinstance(given, str) and given not in self._used
+                    and difflib.get_close_matches(given, [key], cutoff=MISSPELLING_RATIO)):
+                raise self.error(f"unknown field (did you mean {key!r}?)", given, self.values[given])
 
     def string(self, key: str, default: Any = _MISSING) -> str:
         value = self.raw(key, default)
@@ -72,10 +98,19 @@ class Params:
     def child(self, key: str) -> Params:
         return Params(self.raw(key), source=self.source, field=self.path(key))
 
-    def reject_unknown(self, allowed: set[str] | None = None) -> None:
-        """Refuse keys that were neither read nor listed in ``allowed`` (catches typos)."""
-        known = self._used | (allowed or set())
+    def reject_unknown(self, allowed: Iterable[str] | None = None) -> None:
+        """Refuse keys that were neither asked about nor listed in ``allowed`` (catches typos),
+        naming the nearest known key and listing them all."""
+        known = self._used | set(allowed or ())
         for key in self.values:
             if key not in known:
-                raise self.error(f"unknown parameter (known: {', '.join(sorted(known))})", key,
-                                 self.values[key])
+                raise self.error(unknown_field_message(str(key), known), str(key), self.values[key])
+
+
+def unknown_field_message(key: str, known: Iterable[str]) -> str:
+    """``unknown field (did you mean 'joint'? known: joint, pid, type)``: the nearest known key
+    (difflib) when one is close, and the known keys."""
+    known = sorted(known)
+    nearest = difflib.get_close_matches(key, known, n=1)
+    hint = f"did you mean {nearest[0]!r}? " if nearest else ""
+    return f"unknown field ({hint}known: {', '.join(known)})"

@@ -24,7 +24,6 @@ loaded.
 from __future__ import annotations
 
 import copy
-import json
 import math
 from pathlib import Path
 
@@ -32,10 +31,12 @@ import numpy as np
 import yaml
 from scipy.optimize import fsolve
 
+from jointctl.control.manager import read_yaml
 from jointctl.errors import ConfigError
 from jointctl.identification.frequency_response import (LoopModel, _crossing, loop_controller, measure,
                                                          measure_servoed, model_plant, plant_of, servo_reference)
 from jointctl.identification.plant_fit import IdentificationError
+from jointctl.recording.metrics_file import write_metrics
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
 
@@ -165,7 +166,7 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
         result["robot"] = _check_on_robot(scenario_for, controller_name, result["gains"], loop, step, bandwidth_hz)
     if out_dir is not None:
         source = Path(scenario.controller_file)
-        _write(out_dir, source.name, yaml.safe_load(source.read_text()), controller_name, result)
+        _write(out_dir, source.name, read_yaml(source), controller_name, result)
     return result
 
 
@@ -350,7 +351,7 @@ def _step(session: Session, joint: str, set_reference, loop: str, step: float, *
 
 def _write(out_dir, file_name: str, document: dict, controller_name: str, result: dict) -> None:
     """The controller ``document`` (namespace -> controllers) with the tuned gains, as ``file_name``
-    in ``out_dir``, and ``metrics.json``."""
+    in ``out_dir``, and ``metrics.json`` (strict JSON: a figure not measured or unbounded is null)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     tuned = copy.deepcopy(document)
@@ -368,7 +369,7 @@ def _write(out_dir, file_name: str, document: dict, controller_name: str, result
     path = out / file_name
     path.write_text(header + yaml.safe_dump(tuned, sort_keys=False))
     result["yaml"] = str(path)
-    (out / "metrics.json").write_text(json.dumps(result, indent=2, default=float))
+    write_metrics(out, result)  # strict JSON: a figure not measured or unbounded is null
 
 
 __all__ = ["autotune", "autotune_servoed", "bandwidth_ratio", "design", "overshoot_of", "settling_time",

@@ -23,12 +23,13 @@ beside the measurement, and its loop transfer function gives the gain and phase 
 **Figures of merit** (``metrics.json``): per frequency, gain [dB] and phase [deg] measured and
 modelled; the magnitude peak (resonance) and its frequency; the -3 dB bandwidth; the frequency
 where the measured phase crosses -90° (a position loop: the natural frequency, shifted by the
-hold's ``ω·h/2``); the model's gain and phase margins.
+hold's ``ω·h/2``); the model's gain and phase margins. ``metrics.json`` is strict JSON: a figure that is
+not a finite number is ``null``, meaning not measured or unbounded (no -3 dB or -90° crossing inside the
+swept range, an infinite margin; :mod:`jointctl.recording.metrics_file`).
 """
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from dataclasses import dataclass
@@ -40,6 +41,7 @@ from jointctl.control.joint_controllers import JointPositionController, JointVel
 from jointctl.errors import ConfigError
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.model.loader import load_robot_model
+from jointctl.recording.metrics_file import write_metrics
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
 from jointctl.metrics.response import sinusoid_response
@@ -346,20 +348,43 @@ def model_plant(robot, joint: str, pose: dict) -> tuple[float, float]:
 
 
 def analyse(points: list[Point], model: LoopModel | None) -> dict:
-    """Figures of merit of measured ``points`` (and the model's, when given)."""
+    """Figures of merit of measured ``points`` (and the model's, when given).
+
+    ``resonance_hz`` and ``resonance_peak_db`` are the frequency and gain of the largest measured gain
+    when it is a peak inside the swept range (above the gains at both ends of the range), and None (null
+    in ``metrics.json``) otherwise: when the largest gain is at the lowest or the highest frequency
+    swept, the sweep has found no peak, only the edge of its range: a well-damped loop's gain falls from
+    the lowest frequency on (its largest gain is at the first test frequency, 0.5 Hz by default, which
+    is no resonance), and a gain still rising at the highest frequency peaks beyond the range (sweep
+    higher to find it).
+    """
     f = np.array([p.frequency_hz for p in points])
     gain = np.array([p.gain_db for p in points])
     phase = np.unwrap(np.radians([p.phase_deg for p in points]))
     phase = np.degrees(phase)
-    peak = int(np.argmax(gain))
+    peak = resonance_peak(gain)
     result = {"frequencies_hz": f.tolist(), "gain_db": gain.tolist(), "phase_deg": phase.tolist(),
-              "resonance_peak_db": float(gain[peak]), "resonance_hz": float(f[peak]),
+              "resonance_peak_db": None if peak is None else float(gain[peak]),
+              "resonance_hz": None if peak is None else float(f[peak]),
               "bandwidth_hz": _crossing(f, gain, -3.0), "phase_minus_90_hz": _crossing(f, phase, -90.0)}
     if model is not None:
         model_gain, model_phase = model.response(f)
         result["model"] = {"gain_db": model_gain.tolist(), "phase_deg": model_phase.tolist(), **model.margins(),
                            "mass": model.mass, "damping": model.damping, "p": model.p, "i": model.i, "d": model.d}
     return result
+
+
+def resonance_peak(gain_db) -> int | None:
+    """The index of the largest gain when it lies inside the swept range, strictly above the gains at
+    both ends; None when the largest gain is at (or level with) either end: no resonance peak was
+    measured (see :func:`analyse`)."""
+    gain = np.asarray(gain_db, dtype=float)
+    if gain.size < 3:
+        return None
+    peak = int(np.argmax(gain))
+    if not (0 < peak < gain.size - 1 and gain[peak] > gain[0] and gain[peak] > gain[-1]):
+        return None
+    return peak
 
 
 def _crossing(f: np.ndarray, values: np.ndarray, level: float) -> float:
@@ -374,7 +399,8 @@ def _crossing(f: np.ndarray, values: np.ndarray, level: float) -> float:
 
 
 def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
-    """``bode.png`` (measured points, model curve) and ``metrics.json`` into ``out_dir``."""
+    """``bode.png`` (measured points, model curve) and ``metrics.json`` (strict JSON, non-finite figures as
+    null: not measured or unbounded) into ``out_dir``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -405,9 +431,10 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
-    (out / "metrics.json").write_text(json.dumps(result, indent=2, default=float))
+    write_metrics(out, result)  # strict JSON: a figure not measured or unbounded is null
     return path
 
 
 __all__ = ["LoopModel", "Point", "analyse", "bode", "compare", "loop_controller", "measure", "measure_in_session",
-           "measure_servoed", "model_plant", "plant_of", "servo_reference", "sweep", "write_bode"]
+           "measure_servoed", "model_plant", "plant_of", "resonance_peak", "servo_reference", "sweep",
+           "write_bode"]

@@ -15,12 +15,13 @@ Outputs (``out_dir``): ``trace.csv`` (robot runs), ``identify_<joint>.png`` (mea
 against the fitted model's, and the position) and ``metrics.json``: ``mass_kg`` /
 ``damping_n_s_m`` / ``friction_n`` / ``gravity_load_n`` on a prismatic joint,
 ``inertia_kg_m2`` / ``damping_n_m_s_rad`` / ``friction_n_m`` / ``gravity_sin_n_m`` /
-``gravity_cos_n_m`` on a revolute one, each with ``*_ci95``, and the fit's residual.
+``gravity_cos_n_m`` on a revolute one, each with ``*_ci95``, and the fit's residual. ``metrics.json`` is
+strict JSON: a figure that is not a finite number (not measured, or unbounded) is ``null``
+(:mod:`jointctl.recording.metrics_file`).
 """
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -35,6 +36,7 @@ from jointctl.identification.plant_fit import (IdentificationError, PlantFit, ac
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
 from jointctl.recording.figures import plot_series
+from jointctl.recording.metrics_file import write_metrics
 from jointctl.recording.trace import load_trace
 
 #: Rest before the excitation, for the joint to settle where its controller holds it [s].
@@ -244,7 +246,7 @@ def _write(out_dir, joint, fit: PlantFit, metrics: dict, t, q, qd, u) -> None:
     plot_series(out / f"identify_{joint}_position.png", t, {"position": q},
                 title=f"{joint}: the excitation", ylabel="position [m]" if fit.joint_type == "prismatic"
                 else "position [rad]")
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2))
+    write_metrics(out, metrics)  # strict JSON: a figure not measured or unbounded is null
 
 
 __all__ = ["Chirp", "identify_in_session", "identify_on_robot", "identify_servoed", "identify_states", "identify_trace"]

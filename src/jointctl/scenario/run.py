@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterable
 from pathlib import Path
@@ -12,11 +11,11 @@ from jointctl.scenario.analyses import check_analysis
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario, builtin_scenarios, load_scenario
 from jointctl.errors import ConfigError
+from jointctl.recording.metrics_file import json_ready, write_metrics
 from jointctl.recording.trace import load_trace
 from jointctl.visuals.video import FrameCapture, VideoSettings, robot_camera, write_video
 from jointctl.visuals.viewer import LiveViewer
 
-METRICS_FILE = "metrics.json"
 #: The demo report's videos: small GIFs only.
 DEMO_VIDEO = VideoSettings(fps=15.0, width=320, height=240, mp4=False)
 
@@ -71,20 +70,9 @@ def run_scenario(
     rejected = {n: s.rejected_samples for n, s in session.sources.items() if s.rejected_samples}
     if rejected:
         metrics["rejected_command_samples"] = rejected
-    metrics = _json_ready(metrics)
-    (out / METRICS_FILE).write_text(json.dumps(metrics, indent=2, sort_keys=False, allow_nan=False) + "\n")
+    metrics = json_ready(metrics)  # NaN and infinities (never settled, never happened) as null
+    write_metrics(out, metrics)
     return metrics
-
-
-def _json_ready(value: Any) -> Any:
-    """Metrics as strict JSON: NaN and infinities (never settled, never happened) become null."""
-    if isinstance(value, dict):
-        return {k: _json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_ready(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def run_demo(out_dir: str | Path, names: Iterable[str] | None = None) -> Path:

@@ -24,6 +24,9 @@ live here::
 
 ``--set key=value`` overrides any field before validation (``value`` is read
 as YAML: ``--set gravity=-5``, ``--set controllers.joint1_position_controller.pid.p=800``).
+Numbers read as written, the YAML 1.2 way (:class:`jointctl.control.manager.YamlLoader`, the
+loader of the files too): ``800``, ``1_000``, ``2.5``, ``.5``, ``1e3``, ``1E-3``, ``-2.5e+2``;
+``true``/``false``, ``[0, 0, -5]`` and ``{p: 800}`` as in YAML; anything else is a string.
 """
 
 from __future__ import annotations
@@ -35,7 +38,8 @@ from typing import Any
 
 import yaml
 
-from jointctl.control.manager import read_yaml, set_dotted
+from jointctl.control.manager import load_yaml_text, read_yaml, set_dotted
+from jointctl.control.params import unknown_field_message
 from jointctl.errors import ConfigError
 from jointctl.paths import robots_dir, scenarios_dir
 from jointctl.sim.objects import ObjectSpec, object_from_config
@@ -118,13 +122,14 @@ def load_scenario(name_or_path: str | Path, overrides: Iterable[str] = ()) -> Sc
 
 
 def parse_override(item: str) -> tuple[str, Any]:
-    """``"a.b=1.5"`` -> ``("a.b", 1.5)``; the value is read as YAML."""
+    """``"a.b=1.5"`` -> ``("a.b", 1.5)``; the value is read as YAML, numbers as in YAML 1.2
+    (``1e3`` -> 1000.0, see :class:`~jointctl.control.manager.YamlLoader`)."""
     key, sep, text = item.partition("=")
     key = key.strip()
     if not sep or not key or any(not part for part in key.split(".")):
         raise ConfigError("expected KEY=VALUE with a dotted KEY", source="--set", value=item)
     try:
-        value = yaml.safe_load(text) if text.strip() else ""
+        value = load_yaml_text(text) if text.strip() else ""
     except yaml.YAMLError:
         raise ConfigError("the value is not valid YAML", source="--set", field=key, value=text) from None
     return key, value
@@ -172,7 +177,7 @@ class _Validator:
         raw = self.raw
         for key in raw:
             if key not in _KEYS:
-                raise self.error(f"unknown field (known: {', '.join(sorted(_KEYS))})", str(key), raw[key])
+                raise self.error(unknown_field_message(str(key), _KEYS), str(key), raw[key])
         robot = self.robot_files(raw.get("robot"))
         controller_file = self.controller_file(robot)
         overrides = self.mapping("controllers")
