@@ -101,8 +101,9 @@ def test_position_effort_d_acts_on_velocity_error(hardware, robot) -> None:
     assert c.reference_input == (-0.5, 0.1, 0.0)
 
 
-def test_position_step_has_no_derivative_kick(hardware, robot) -> None:
-    c = position_controller(hardware, robot, p=400.0, d=20.0)
+def test_position_step_has_no_derivative_kick_with_derivative_on_measurement(hardware, robot) -> None:
+    c = build({"type": POSITION_TYPE, "joint": "joint1", "pid": {"p": 400.0, "d": 20.0},
+               "derivative": "measurement"}, hardware, robot)
     hardware.set_state("joint1", -0.2, 0.0)
     c.set_reference(-0.2)
     c.update(0.0, DT)

@@ -92,7 +92,8 @@ def wheel(joint_type: str) -> RobotModel:
 def controller_on(joint_type: str, hardware: FakeHardware) -> JointPositionController:
     from jointctl.control.params import Params
 
-    params = Params({"type": POSITION_TYPE, "joint": "wheel", "pid": {"p": KP, "d": KV}}, source="t.yaml",
+    params = Params({"type": POSITION_TYPE, "joint": "wheel", "pid": {"p": KP, "d": KV},
+                     "derivative": "measurement"}, source="t.yaml",  # the book's law, as its YAML says
                     field="c")
     c = JointPositionController("c", params)
     c.configure(hardware, wheel(joint_type))

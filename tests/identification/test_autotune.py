@@ -19,7 +19,16 @@ PRE_POSE = [0.0, 1.0, 0.0, -2.0, 0.0, 1.0, 0.0]
 
 
 def one_dof(overrides=()):
+    """The chapter's file as it is: ros_controllers' law (derivative on the error)."""
     return scenario_for_robot("one_dof", "position", list(overrides))
+
+
+MEASUREMENT = "controllers.joint1_position_controller.derivative=measurement"
+
+
+def one_dof_measurement(overrides=()):
+    """The chapter's file with jointctl's law (derivative on the measured speed)."""
+    return scenario_for_robot("one_dof", "position", [MEASUREMENT, *overrides])
 
 
 def settling_time_2pct(t: np.ndarray, y: np.ndarray) -> float:
@@ -33,14 +42,16 @@ def settling_time_2pct(t: np.ndarray, y: np.ndarray) -> float:
 def test_the_second_order_formulas() -> None:
     assert overshoot_of(0.7) == pytest.approx(0.046, abs=5e-4)
     assert bandwidth_ratio(1 / math.sqrt(2)) == pytest.approx(1.0)  # ζ = 0.707: bandwidth = ωn
-    gains = design(1.0, 0.0, loop="position", bandwidth_hz=1.0, zeta=0.5, period_s=1e-4)
+    gains = design(1.0, 0.0, loop="position", bandwidth_hz=1.0, zeta=0.5, period_s=1e-4, derivative="measurement")
     wn = 2 * math.pi / bandwidth_ratio(0.5)  # a fast loop: the continuous design
     assert gains["p"] == pytest.approx(wn**2, rel=5e-3) and gains["d"] == pytest.approx(wn, rel=5e-3)
     assert zeta_of(overshoot_of(0.55)) == pytest.approx(0.55)
 
 
 def test_the_one_dof_robot_meets_zeta_07_and_5_hz(tmp_path) -> None:
-    result = autotune(one_dof, "joint1_position_controller", bandwidth_hz=5.0, zeta=0.7, step=0.1, out_dir=tmp_path)
+    result = autotune(one_dof_measurement, "joint1_position_controller", bandwidth_hz=5.0, zeta=0.7, step=0.1,
+                      out_dir=tmp_path)
+    assert result["derivative"] == "measurement"
     assert result["robot"]["step_overshoot_pct"] == pytest.approx(4.6, abs=1.0)
     assert result["robot"]["bandwidth_hz"] == pytest.approx(5.0, rel=0.05)
     assert result["model"]["overshoot_pct"] == pytest.approx(4.6, abs=0.05)
@@ -72,7 +83,7 @@ def test_an_overshoot_and_settling_time_become_the_second_order_loop_that_has_th
 
 def test_the_one_dof_robot_meets_10_percent_in_03_s() -> None:
     zeta, bandwidth_hz = spec_from_step(10.0, 0.3)
-    result = autotune(one_dof, "joint1_position_controller", bandwidth_hz=bandwidth_hz, zeta=zeta, step=0.1,
+    result = autotune(one_dof_measurement, "joint1_position_controller", bandwidth_hz=bandwidth_hz, zeta=zeta, step=0.1,
                       settling_s=0.3)
     assert result["spec"]["settling_s"] == 0.3 and result["spec"]["overshoot_pct"] == pytest.approx(10.0)
     assert result["robot"]["step_overshoot_pct"] == pytest.approx(10.0, abs=1.0)
@@ -100,7 +111,7 @@ def test_a_velocity_loop_gets_its_bandwidth() -> None:
 def test_a_spec_the_effort_limit_cannot_meet_is_refused_naming_the_achievable_bandwidth() -> None:
     # p for 20 Hz: 1.01·(2π·20/1.01)² ≈ 15 600 N/m; a 0.5 m step would ask 7800 N of 1000 N.
     with pytest.raises(IdentificationError) as info:
-        autotune(one_dof, "joint1_position_controller", bandwidth_hz=20.0, step=0.5)
+        autotune(one_dof_measurement, "joint1_position_controller", bandwidth_hz=20.0, step=0.5)
     p_max = (1000.0 - 1.01 * 9.81) / 0.5
     achievable = math.sqrt(p_max / 1.01) * bandwidth_ratio(0.7) / (2 * math.pi)
     assert f"the most this step allows is {achievable:.3g} Hz" in str(info.value)
@@ -119,9 +130,10 @@ def test_bad_specs_are_refused_naming_the_field(kwargs, field) -> None:
 
 @pytest.mark.slow
 def test_the_arms_joint1_around_the_pre_pose_meets_the_same_spec() -> None:
-    def arm(overrides=()):
+    def arm(overrides=()):  # jointctl's law: ros_control's kick d·step/period would exceed the effort limit
         return scenario_for_robot("arm7dof", "position",
-                                  [f"initial_positions.joint{k}={q}" for k, q in enumerate(PRE_POSE)] + list(overrides))
+                                  [f"initial_positions.joint{k}={q}" for k, q in enumerate(PRE_POSE)]
+                                  + ["controllers.joint1_position_controller.derivative=measurement", *overrides])
 
     # The plant is the model's M11 at the pre-pose; the held joints, coupled through M, make joint 1
     # lighter at 5 Hz (their loops are slower): a little more damped and slower than designed.

@@ -203,6 +203,7 @@ def _bode_industrial(args: argparse.Namespace, frequencies) -> dict:
 def _bode_served(args: argparse.Namespace, frequencies) -> dict:
     """``bode --hardware ros``: the served node's loop through its command topic and joint states, in
     real time, beside the model with the gains its dynamic_reconfigure server holds."""
+    from jointctl.control.joint_controllers import derivative_law
     from jointctl.identification.frequency_response import compare, measure_servoed
 
     if not args.controller:
@@ -213,6 +214,8 @@ def _bode_served(args: argparse.Namespace, frequencies) -> dict:
         joint = hardware.joint_of(name)
         points, context = measure_servoed(session, joint, frequencies, amplitude=args.amplitude)
         context["gains"] = hardware.gains(name)
+        # The law the served controller runs: its parameters' ``derivative``, else ros_controllers' (error).
+        context["derivative"] = derivative_law(hardware.controller_parameters().get(name, {}))
         pose = dict(zip(hardware.joint_names, hardware.position))
         pose[joint] = context["rest"]
         return compare(points, context, f"/{hardware.namespace}/{name}", plant, session.robot, pose,

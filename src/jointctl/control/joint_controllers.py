@@ -99,6 +99,28 @@ class _EffortJointController(Controller):
 
 
 FEEDFORWARD_TERMS = ("gravity", "damping", "inertia")
+#: The position controller's derivative laws (its ``derivative`` parameter): ros_control's (the
+#: error's difference for a plain command, the velocity error for a reference with a velocity)
+#: and jointctl's (the velocity error always: derivative on measurement for a plain command).
+DERIVATIVE_ERROR, DERIVATIVE_MEASUREMENT = "error", "measurement"
+DERIVATIVE_LAWS = (DERIVATIVE_ERROR, DERIVATIVE_MEASUREMENT)
+
+
+class _Plain(float):
+    """The default velocity of :meth:`JointPositionController.set_reference`: none given (a plain
+    position command); a float 0.0 so that it reads as no velocity feed-forward."""
+
+    def __repr__(self) -> str:
+        return "PLAIN"
+
+
+PLAIN = _Plain(0.0)
+
+
+def derivative_law(parameters: dict) -> str:
+    """The derivative law a position controller's YAML entry (a dict) asks for: its ``derivative``,
+    else ``error`` (ros_controllers' law, which a real ros_control robot runs)."""
+    return str(parameters.get("derivative", DERIVATIVE_ERROR)) if isinstance(parameters, dict) else DERIVATIVE_ERROR
 _TWO_PI = 2.0 * math.pi
 
 
@@ -116,14 +138,26 @@ def wrap_angle(angle: float) -> float:
 class JointPositionController(_EffortJointController):
     """Effort from a PID on position error, plus optional model-based feed-forward.
 
-    The derivative term uses ``velocity_reference - measured velocity`` (zero
-    reference unless one is given), not a finite difference of the position
-    error: no derivative kick on steps, no differencing noise; so a velocity
-    reference acts as velocity feed-forward through ``d``. A position-only
-    command (a ``command`` topic, or an executor without velocity feed-forward)
-    therefore gives exactly ``p·err - d·q̇``: derivative on measurement, the law of
-    the book's minimal_joint_controller. On start the controller holds the joint
-    where it is.
+    The derivative term follows ros_controllers' ``effort_controllers/JointPositionController``
+    (``derivative: error``, the default), choosing by whether the reference *carries a velocity*:
+
+    - it carries one when an upstream controller writes it (chained mode: a trajectory executor,
+      whose velocity may be 0 without feed-forward, as ros_control's ``setCommand(pos, vel)``) or
+      when an edge gives ``set_reference(position, velocity)`` with a velocity (the simulated
+      industrial controller does): the d term acts on ``velocity reference - measured velocity``;
+    - a plain position command (``set_reference(position)``: the ``command`` topic, the tuning
+      page, autotune's and bode's steps and sines, a scenario's reference source) carries none:
+      the d term acts on the backward difference of the error, ``(e - e_last)/period`` (the rate
+      of the last call with a velocity, else 0, on the first call after start), as
+      control_toolbox's ``computeCommand(error, dt)``: a step of Δ gives one cycle of ``d·Δ/period``
+      (the derivative kick), then ``-d·q̇`` (as a difference).
+
+    ``derivative: measurement`` keeps jointctl's own law: the d term always acts on
+    ``velocity reference - measured velocity`` (0 reference for a plain command), so a plain
+    command gives exactly ``p·err - d·q̇``: no kick, no differencing, the law of the book's
+    minimal_joint_controller and of the mass-spring-damper ``p / (m s² + (b + d) s + p)``. The loop
+    models of ``bode`` and ``autotune`` follow the law the controller runs (:attr:`derivative`).
+    On start the controller holds the joint where it is (a plain command).
 
     On a continuous joint (no position limits) the error is the shortest way
     round: ``command - position`` wrapped to (-π, π] rad, as ros_control's
@@ -140,6 +174,10 @@ class JointPositionController(_EffortJointController):
 
     def __init__(self, name: str, params: Params) -> None:
         self._ff_params = params.child("feedforward") if params.has("feedforward") else None
+        # Read before the base class refuses unknown keys.
+        self.derivative = params.string("derivative", DERIVATIVE_ERROR)
+        if self.derivative not in DERIVATIVE_LAWS:
+            raise params.error(f"must be one of {', '.join(DERIVATIVE_LAWS)}", "derivative", self.derivative)
         super().__init__(name, params)
         ff = self._ff_params
         self.feedforward_terms = tuple(t for t in FEEDFORWARD_TERMS if ff is not None and ff.boolean(t, False))
@@ -156,10 +194,24 @@ class JointPositionController(_EffortJointController):
         self.uses_model = self._gravity or self._inertia
         self.uses_model_inertia = self._inertia
         self._model = self.context.feedforward if self.uses_model else None
+        self._on_error = self.derivative == DERIVATIVE_ERROR
+        self._edge_velocity = False
+        self._reset_difference()
 
-    def set_reference(self, position: float, velocity: float = 0.0, acceleration: float = 0.0) -> None:
+    def _reset_difference(self) -> None:
+        """control_toolbox's ``Pid::reset()``: no last error yet, the last rate 0."""
+        self._last_error = 0.0
+        self._last_valid = False
+        self._last_rate = 0.0
+
+    def set_reference(self, position: float, velocity: float = PLAIN, acceleration: float = 0.0) -> None:
         """The edge door: a position [m or rad] with optional velocity [/s] and acceleration [/s²]
-        references, validated, into the joint's reference interfaces (refused while chained)."""
+        references, validated, into the joint's reference interfaces (refused while chained). With
+        a velocity (even 0) the reference carries one; without, it is a plain position command
+        (see the class docstring for what the derivative then acts on)."""
+        carries = velocity is not PLAIN
+        if not carries:
+            velocity = 0.0
         # One check for the usual case, three finite floats (x - x is 0.0 only for a finite x).
         if not (type(position) is float and type(velocity) is float and type(acceleration) is float
                 and position - position + velocity - velocity + acceleration - acceleration == 0.0):
@@ -169,6 +221,7 @@ class JointPositionController(_EffortJointController):
         self._check_edge(position)
         i = self.index
         self._velocities[i], self._accelerations[i] = velocity, acceleration
+        self._edge_velocity = carries
         self._positions[i] = position
 
     @property
@@ -181,7 +234,9 @@ class JointPositionController(_EffortJointController):
         self.hardware.read()
         i = self.index
         self._positions[i], self._velocities[i], self._accelerations[i] = self.hardware.position[i], 0.0, 0.0
+        self._edge_velocity = False  # ros_control's starting(): setCommand(position), a plain command
         self.pid.reset()
+        self._reset_difference()
 
     def update(self, time_s: float, period_s: float) -> None:
         i = self.index
@@ -193,7 +248,18 @@ class JointPositionController(_EffortJointController):
         error = position - hw.position[i]
         if self.continuous and not -math.pi < error <= math.pi:
             error = wrap_angle(error)
-        effort = self.pid.compute(error, velocity - hw.velocity[i], period_s)
+        if self._on_error and self.upstream is None and not self._edge_velocity:
+            # A plain command, ros_control's law: computeCommand(error, dt) differentiates the error.
+            if self._last_valid:
+                rate = (error - self._last_error) / period_s
+            else:
+                rate = self._last_rate
+                self._last_valid = True
+            self._last_error = error
+        else:
+            rate = velocity - hw.velocity[i]
+        self._last_rate = rate
+        effort = self.pid.compute(error, rate, period_s)
         if self.feedforward_terms:
             model = self._model
             if self._gravity:
@@ -208,7 +274,8 @@ class JointPositionController(_EffortJointController):
 
 
 class JointVelocityController(_EffortJointController):
-    """Effort from a PID on velocity error; ``d`` acts on the error's backward difference.
+    """Effort from a PID on velocity error; ``d`` acts on the error's backward difference (0 on
+    the first update after start, as control_toolbox's ``computeCommand(error, dt)``).
 
     On start the reference is zero velocity.
 
@@ -229,6 +296,7 @@ class JointVelocityController(_EffortJointController):
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
         super().configure(hardware, robot)
         self._last_error = 0.0
+        self._last_valid = False
         self._token = self._seen = None
         self._command_time = 0.0
         self.timed_out = False
@@ -254,6 +322,7 @@ class JointVelocityController(_EffortJointController):
         self._command_time = time_s
         self.timed_out = False
         self.pid.reset()
+        self._last_valid = False
 
     def update(self, time_s: float, period_s: float) -> None:
         i = self.index
@@ -272,6 +341,7 @@ class JointVelocityController(_EffortJointController):
         velocity = -limit if velocity < -limit else limit if velocity > limit else velocity
         self.references[i] = velocity
         error = velocity - self.hardware.velocity[i]
-        rate = (error - self._last_error) / period_s
+        rate = (error - self._last_error) / period_s if self._last_valid else 0.0
+        self._last_valid = True
         self._last_error = error
         self.effort_command[i] = self.pid.compute(error, rate, period_s)

@@ -1,18 +1,24 @@
 """``jointctl autotune``: gains for a damping ratio and a bandwidth, checked on the model and on the robot.
 
 **Design.** The plant is the joint's mass (or inertia) ``m`` and viscous damping ``b`` (identified,
-or the robot model's). A position loop gets a PD (``p``, ``d``; the derivative on the measured
-speed, as jointctl's position controller does with a position-only reference), making
+or the robot model's). A position loop gets a PD (``p``, ``d``). With the derivative on the measured
+speed (``derivative: measurement``, jointctl's law with a position-only reference) the loop is
 ``p / (m s² + (b + d) s + p)``: ``ωn = sqrt(p/m)``, ``ζ = (b + d) / (2·sqrt(p·m))``, whose -3 dB
 bandwidth is ``ωn·sqrt(1 - 2ζ² + sqrt(4ζ⁴ - 4ζ² + 2))`` and step overshoot ``exp(-πζ/sqrt(1-ζ²))``
-(4.6 % at ζ = 0.7). A velocity loop gets a P (``p``), making ``p / (m s + p + b)`` with bandwidth
+(4.6 % at ζ = 0.7). With the derivative on the error (``derivative: error``, ros_controllers' law
+for a plain position command, and the default) the loop is ``(d s + p) / (m s² + (b + d) s + p)``:
+the zero makes the step overshoot more for the same gains (the measurement design of 10 % in 0.3 s
+overshoots 14 % there), so the gains are solved on that loop's own sampled model; the ζ of the spec
+then names the step's overshoot (``exp(-πζ/sqrt(1-ζ²))``), not the poles' damping. A velocity loop gets a P (``p``), making ``p / (m s + p + b)`` with bandwidth
 ``(p + b)/m``. The continuous design is then corrected for the 1 kHz sample-and-hold: the sampled
 loop's model (python-control, :class:`~jointctl.identification.frequency_response.LoopModel`) is
 solved for the gains whose overshoot and -3 dB bandwidth meet the spec.
 
 **Effort.** A step of ``step`` [m or rad; m/s or rad/s for a velocity loop] asks ``p·step`` at once,
 on top of the gravity load: when ``p·step + |gravity|`` exceeds the joint's effort limit the spec
-is refused, naming the bandwidth that step allows.
+is refused, naming the bandwidth that step allows. With the derivative on the error the first cycle
+asks the kick ``d·step/period`` as well; when that exceeds the limit the check steps by the largest
+step that fits (``check_step``, said in ``note``): a clamped kick would not give the modelled response.
 
 **Check.** Before they are offered, the gains are simulated on the sampled model and on the robot
 itself (the scenario with the new gains: a step of ``step`` from rest, and a stepped-sine sweep
@@ -25,12 +31,14 @@ from __future__ import annotations
 
 import copy
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
 import yaml
 from scipy.optimize import fsolve
 
+from jointctl.control.joint_controllers import derivative_law
 from jointctl.control.manager import read_yaml
 from jointctl.errors import ConfigError
 from jointctl.identification.frequency_response import (LoopModel, _crossing, loop_controller, measure,
@@ -60,8 +68,9 @@ def zeta_of(overshoot: float) -> float:
 
 
 def design(mass: float, damping: float, *, loop: str, bandwidth_hz: float, zeta: float = 0.7,
-           period_s: float = 0.001) -> dict:
-    """Gains ``{"p", "i", "d"}`` for the spec on the sampled loop (see the module docstring)."""
+           period_s: float = 0.001, derivative: str = "error") -> dict:
+    """Gains ``{"p", "i", "d"}`` for the spec on the sampled loop (see the module docstring) whose
+    position controller runs the ``derivative`` law ("error" or "measurement")."""
     wb = 2 * math.pi * bandwidth_hz
     if loop == "velocity":
         p0 = mass * wb - damping
@@ -86,13 +95,38 @@ def design(mass: float, damping: float, *, loop: str, bandwidth_hz: float, zeta:
                                   "higher bandwidth or damping ratio", field="zeta", value=zeta)
     target_overshoot = overshoot_of(zeta)
 
-    def miss(x):
-        model = LoopModel(mass, damping, x[0], 0.0, x[1], period_s, "position")
-        gain, _ = model.response([bandwidth_hz])
-        return [gain[0] + 3.0103, (_model_overshoot(model) - target_overshoot) * 100]
+    def solve(law: str, start) -> tuple[float, float]:
+        def miss(x):
+            model = LoopModel(mass, damping, x[0], 0.0, x[1], period_s, "position", law)
+            gain, _ = model.response([bandwidth_hz])
+            return [gain[0] + 3.0103, (_model_overshoot(model) - target_overshoot) * 100]
 
-    p, d = fsolve(miss, [p0, d0], xtol=1e-10)
-    return {"p": float(p), "i": 0.0, "d": float(d)}
+        with warnings.catch_warnings():  # "not making good progress": judged by the residual below
+            warnings.simplefilter("ignore", RuntimeWarning)
+            x = fsolve(miss, start, xtol=1e-10)
+        if not np.all(np.isfinite(x)) or x[0] <= 0 or x[1] < 0 or max(map(abs, miss(x))) > 1e-3:
+            raise IdentificationError(
+                f"found no PD gains that give ζ {zeta:g} ({100 * target_overshoot:.3g} % overshoot) and {bandwidth_hz:g} Hz "
+                f"with the derivative on the {law} (its zero keeps some overshoot); ask for a lower ζ (more "
+                f"overshoot) or another bandwidth, or run the controller with derivative: measurement",
+                field="zeta", value=zeta)
+        return float(x[0]), float(x[1])
+
+    # Derivative on measurement: the continuous design, corrected for the hold. Derivative on the
+    # error adds the zero of p + d·s (its step overshoots more for the same gains): solved from there.
+    p, d = solve("measurement", [p0, d0])
+    if derivative == "error":
+        # The zero lends bandwidth: the same spec needs less p (a half at 5 Hz on the 1-DOF robot, an
+        # eighth at 20 Hz); started from the measurement design scaled down until one converges.
+        p_m, d_m = p, d
+        for scale in (1.0, 0.5, 0.25, 0.125, 0.0625):
+            try:
+                p, d = solve("error", [p_m * scale, d_m * math.sqrt(scale)])
+                break
+            except IdentificationError:
+                if scale == 0.0625:
+                    raise
+    return {"p": p, "i": 0.0, "d": d}
 
 
 #: The settling band of a step: within 2 % of the step from then on.
@@ -160,10 +194,11 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
     gains = controller.pid.gains
     result = tune(controller_name, joint, loop, session.loop.period_s, plant, session.robot, pose, gravity,
                   controller.effort_limit, {"p": gains.p, "i": gains.i, "d": gains.d}, bandwidth_hz=bandwidth_hz,
-                  zeta=zeta, step=step, settling_s=settling_s)
+                  zeta=zeta, step=step, settling_s=settling_s, derivative=getattr(controller, "derivative", "error"))
     session.close()
     if check_on_robot:
-        result["robot"] = _check_on_robot(scenario_for, controller_name, result["gains"], loop, step, bandwidth_hz)
+        result["robot"] = _check_on_robot(scenario_for, controller_name, result["gains"], loop, result["check_step"],
+                                          bandwidth_hz)
     if out_dir is not None:
         source = Path(scenario.controller_file)
         _write(out_dir, source.name, read_yaml(source), controller_name, result)
@@ -178,13 +213,15 @@ def _check_spec(bandwidth_hz, step) -> None:
 
 def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: dict | None, robot, pose: dict,
          gravity: float | None, effort_limit: float, previous_gains: dict, *, bandwidth_hz: float, zeta: float,
-         step: float, settling_s: float | None = None) -> dict:
+         step: float, settling_s: float | None = None, derivative: str = "error") -> dict:
     """Design the gains for the spec and predict them on the sampled model (no robot involved): the
     plant from ``plant`` (an identification's metrics, its ``gravity_load_n`` the load) or else
     ``robot``'s model at ``pose`` with ``gravity`` [N or N·m, magnitude] as the load. Refused when
     a step of ``step`` would exceed ``effort_limit``, naming the bandwidth it allows. ``settling_s``
     is recorded in the spec when the spec was given as overshoot and settling time
-    (:func:`spec_from_step` made ``zeta`` and ``bandwidth_hz`` of it)."""
+    (:func:`spec_from_step` made ``zeta`` and ``bandwidth_hz`` of it). ``derivative`` is the law the
+    position controller runs ("error", ros_controllers', or "measurement"): the design and the model
+    follow it."""
     if plant is not None:
         mass, damping = plant_of(plant)
         gravity = abs(float(plant.get("gravity_load_n", 0.0)))
@@ -192,22 +229,41 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     else:
         mass, damping = model_plant(robot, joint, pose)
         source = "robot model"
-    gains = design(mass, damping, loop=loop, bandwidth_hz=bandwidth_hz, zeta=zeta, period_s=period_s)
+    gains = design(mass, damping, loop=loop, bandwidth_hz=bandwidth_hz, zeta=zeta, period_s=period_s,
+                   derivative=derivative)
     need = gains["p"] * step + gravity
     if need > effort_limit:
-        achievable = _achievable_hz(mass, damping, loop, zeta, (effort_limit - gravity) / step)
+        p_max = (effort_limit - gravity) / step
+        if loop == "position" and derivative == "error":
+            # No closed form with the zero: p grows about as the bandwidth squared (the design's own p).
+            achievable = bandwidth_hz * math.sqrt(max(p_max, 0.0) / gains["p"])
+        else:
+            achievable = _achievable_hz(mass, damping, loop, zeta, p_max)
         raise IdentificationError(
             f"a step of {step:g} would ask {need:.4g} of the joint's effort limit {effort_limit:g} (p {gains['p']:.4g}"
-            f" and a gravity load of {gravity:.4g}); the most this step allows is {achievable:.3g} Hz",
+            f" and a gravity load of {gravity:.4g}); the most this step allows is "
+            f"{'about ' if loop == 'position' and derivative == 'error' else ''}{achievable:.3g} Hz",
             field="bandwidth_hz", value=bandwidth_hz)
-    model = LoopModel(mass, damping, gains["p"], gains["i"], gains["d"], period_s, loop)
+    check_step, note = step, None
+    kick = gains["d"] * step / period_s if loop == "position" and derivative == "error" else 0.0
+    if kick and need + kick > effort_limit:
+        # Derivative on the error: a step's first cycle asks the kick d·step/period as well; clamped, it
+        # delivers less than the impulse d·step the model counts on. The check steps by the most that fits.
+        check_step = (effort_limit - gravity) / (gains["p"] + gains["d"] / period_s)
+        note = (f"the check steps by {check_step:.3g}, not {step:g}: with the derivative on the error a step's "
+                f"first cycle asks d·step/period more (the derivative kick, {kick:.4g} for {step:g}), and "
+                f"{step:g} would exceed the effort limit {effort_limit:g} there; larger steps overshoot less than "
+                "designed (the kick is clamped)")
+    model = LoopModel(mass, damping, gains["p"], gains["i"], gains["d"], period_s, loop, derivative)
     predicted = {"bandwidth_hz": _model_bandwidth(model, bandwidth_hz)}
     if loop == "position":
         t, y = _model_step(model, seconds=max(3.0, 3.0 * (settling_s or 0.0)))
         predicted["overshoot_pct"] = 100 * float((y.max() - y[-1]) / y[-1])
         predicted["settling_s"] = settling_time(t, y, 0.0, float(y[-1]))
-    return {"controller": controller_name, "joint": joint, "loop": loop, "plant_source": source, "mass": mass,
+    return {"controller": controller_name, "joint": joint, "loop": loop, "derivative": derivative if loop == "position"
+            else None, "plant_source": source, "mass": mass,
             "damping": damping, "gravity_load": gravity, "effort_limit": effort_limit, "step": step,
+            "check_step": check_step, **({"note": note} if note else {}),
             "spec": {"bandwidth_hz": bandwidth_hz, "zeta": zeta if loop == "position" else None,
                      "overshoot_pct": 100 * overshoot_of(zeta) if loop == "position" else None,
                      "settling_s": settling_s},
@@ -233,12 +289,15 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
     effort_limit = spec.limits.effort if spec.limits is not None and spec.limits.effort > 0 else math.inf
     gravity = None if plant is not None else _gravity_load(session.robot, pose, joint, gravity_m_s2)
     previous = hardware.gains(controller_name)
+    # The law the served controller runs: its parameters' ``derivative``, else ros_controllers' (error).
+    law = derivative_law(hardware.controller_parameters().get(controller_name.rsplit("/", 1)[-1], {}))
     result = tune(controller_name, joint, loop, session.loop.period_s, plant, session.robot, pose, gravity,
-                  effort_limit, previous, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s)
+                  effort_limit, previous, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s,
+                  derivative=law)
     if check_on_robot:
         hardware.set_gains(controller_name, result["gains"])
         try:
-            result["robot"] = _check_servoed(session, joint, loop, step, bandwidth_hz)
+            result["robot"] = _check_servoed(session, joint, loop, result["check_step"], bandwidth_hz)
         finally:
             hardware.set_gains(controller_name, previous)
         result["gains_restored"] = hardware.gains(controller_name)

@@ -6,8 +6,9 @@ frequency after the other (``frequencies_hz``, log-spaced by default), each held
 transient has died (``settle_s`` and at least two periods) and then measured over whole periods
 (at least ``measure_periods`` and ``measure_s``): gain and phase of the response at the reference's
 frequency by a least-squares sine fit (:func:`jointctl.metrics.response.sinusoid_response`).
-The reference is position only (velocity reference 0), as the chapter's command topic gives it:
-the PID's derivative acts on the measured speed. A velocity loop's reference carries a slow
+The reference is position only (a plain command, no velocity), as the chapter's command topic gives
+it: the PID's derivative acts on the error's difference (``derivative: error``, ros_controllers' law)
+or on the measured speed (``derivative: measurement``), as the controller is configured. A velocity loop's reference carries a slow
 position term as well, a tenth of the lowest frequency, so that gravity does not walk the joint to
 a limit; the fit takes the reference as given, so the loop's own response is what is measured.
 Simulated time; the amplitude keeps the joint inside its range (a third of the room to the nearer
@@ -17,7 +18,11 @@ limit for a position loop; for a velocity loop the swing ``A/ω`` at the lowest 
 or the URDF's mass and damping), driven by the controller as configured (``p``, ``i``, ``d`` of its
 YAML) at the loop period ``h`` with the effort held over each period: python-control discretises
 the plant (zero-order hold, states position and speed) and closes the sampled loop
-``u = p·e + i·h·Σe - d·q̇`` (position) or ``u = p·e_v + i·h·Σe_v`` (velocity). Its curve is drawn
+``u = p·e + i·h·Σe + d·(e - e_last)/h`` (position, derivative on error: ``C(z) = p + d(1 - z⁻¹)/h``
+acts on ``r - y``, a zero in the closed loop), ``u = p·e + i·h·Σe - d·q̇`` (position, derivative on
+measurement: ``d`` acts on the measured speed only, no zero) or ``u = p·e_v + i·h·Σe_v`` (velocity),
+the law the controller runs (its ``derivative``; ``error`` for a served ros_control robot's
+``effort_controllers/JointPositionController`` unless its parameters say otherwise). Its curve is drawn
 beside the measurement, and its loop transfer function gives the gain and phase margins.
 
 **Figures of merit** (``metrics.json``): per frequency, gain [dB] and phase [deg] measured and
@@ -50,7 +55,9 @@ from jointctl.metrics.response import sinusoid_response
 @dataclass(frozen=True)
 class LoopModel:
     """The sampled loop of the module docstring: plant ``mass`` [kg or kg·m²] and ``damping``
-    [N·s/m or N·m·s/rad], gains ``p``, ``i``, ``d``, loop ``period_s``, ``loop`` "position" or "velocity"."""
+    [N·s/m or N·m·s/rad], gains ``p``, ``i``, ``d``, loop ``period_s``, ``loop`` "position" or "velocity",
+    and the position loop's ``derivative`` law: "error" (ros_controllers': ``d`` on the error's
+    backward difference, with a plain position reference) or "measurement" (``d`` on the measured speed)."""
 
     mass: float
     damping: float
@@ -59,10 +66,20 @@ class LoopModel:
     d: float
     period_s: float
     loop: str = "position"
+    derivative: str = "error"
+
+    def __post_init__(self) -> None:
+        if self.derivative not in ("error", "measurement"):
+            raise ValueError(f"derivative must be 'error' or 'measurement', not {self.derivative!r}")
+
+    @property
+    def _on_error(self) -> bool:
+        return self.loop == "position" and self.derivative == "error" and self.d != 0.0
 
     def _matrices(self):
-        """The sampled plant (A, B), the closed loop (A, B, C) on states (q, q̇[, integral]) and the
-        loop's gain on the plant state, K(z) = (p + i·h·z/(z-1))·C + D (the loop broken at the plant input)."""
+        """The sampled plant (A, B), the closed loop (A, B, C) on states (q, q̇[, e_last][, integral])
+        and the loop's gain on the plant state, K(z) = (p + i·h·z/(z-1))·C + D (the loop broken at
+        the plant input; derivative on error adds ``d·(1 - 1/z)/h`` to the error's gain instead of D)."""
         import control
 
         h, m, b = self.period_s, self.mass, self.damping
@@ -75,6 +92,20 @@ class LoopModel:
         a_cl = a - bu @ (kp * c + dv)
         b_cl = bu * kp
         c_cl = c
+        if self._on_error:
+            # u = kp·e + (d/h)·(e - e_last), e = r - q; the state e_last takes this cycle's e.
+            dh = self.d / h
+            dv = np.zeros((1, 2))
+            a_cl = np.block([[a - (kp + dh) * bu @ c, -dh * bu], [-c, np.zeros((1, 1))]])
+            b_cl = np.vstack([bu * (kp + dh), [[1.0]]])
+            c_cl = np.hstack([c, [[0.0]]])
+            if self.i:
+                bu_e = np.vstack([bu, [[0.0]]])
+                c_e = np.hstack([c, [[0.0]]])
+                a_cl = np.block([[a_cl, bu_e], [-self.i * h * c_e, np.ones((1, 1))]])
+                b_cl = np.vstack([b_cl, [[self.i * h]]])
+                c_cl = np.hstack([c_cl, [[0.0]]])
+            return a, bu, c, dv, a_cl, b_cl, c_cl
         if self.i:
             a_cl = np.block([[a_cl, bu], [-self.i * h * c, np.ones((1, 1))]])
             b_cl = np.vstack([b_cl, [[self.i * h]]])
@@ -105,7 +136,8 @@ class LoopModel:
         out = []
         for f in np.asarray(frequencies_hz, dtype=float):
             z = np.exp(1j * 2 * math.pi * f * self.period_s)
-            gain = (self.p + (self.i * self.period_s * z / (z - 1) if self.i else 0.0)) * c + dv
+            derivative = self.d * (1 - 1 / z) / self.period_s if self._on_error else 0.0
+            gain = (self.p + (self.i * self.period_s * z / (z - 1) if self.i else 0.0) + derivative) * c + dv
             out.append((gain @ np.linalg.solve(z * np.eye(2) - a, bu))[0, 0])
         return np.array(out)
 
@@ -154,6 +186,7 @@ def measure_in_session(session, controller_name: str, frequencies_hz, *, amplitu
                             amplitude=amplitude, settle_s=settle_s, measure_periods=measure_periods,
                             measure_s=measure_s)
     context["gains"] = {"p": gains.p, "i": gains.i, "d": gains.d}
+    context["derivative"] = getattr(controller, "derivative", "error")
     return points, context
 
 
@@ -315,7 +348,7 @@ def compare(points: list[Point], context: dict, controller_name: str, plant: dic
         source = "robot model"
     gains = context["gains"]
     model = LoopModel(float(mass), float(damping), gains["p"], gains["i"], gains["d"], context["period_s"],
-                      context["loop"])
+                      context["loop"], context.get("derivative", "error"))
     result = analyse(points, model)
     result.update(controller=controller_name, plant_source=source, **context)
     if out_dir is not None:
@@ -416,7 +449,7 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
         dense = np.logspace(math.log10(min(f)), math.log10(max(f)), 400)
         model = result["model"]
         lm = LoopModel(model["mass"], model["damping"], model["p"], model["i"], model["d"],
-                       result["period_s"], result["loop"])
+                       result["period_s"], result["loop"], result.get("derivative", "error"))
         g, p = lm.response(dense)
         ax_gain.semilogx(dense, g, "-", label="model (plant, gains, 1 kHz hold)")
         ax_phase.semilogx(dense, p, "-", label="model")
