@@ -185,7 +185,7 @@ def test_a_misspelt_joint_key_is_named_before_the_missing_joint(manager, write_y
 
 @pytest.mark.parametrize(("name", "entry", "typo", "message"), [
     (POS, {"type": POSITION_TYPE, "joint": "joint1", "feed_forward": {"gravity": True}}, "feed_forward",
-     "unknown field (did you mean 'feedforward'? known: feedforward, joint, pid, type)"),
+     "unknown field (did you mean 'feedforward'? known: derivative, feedforward, joint, pid, type)"),
     (VEL, {"type": "effort_controllers/JointVelocityController", "joint": "joint1", "pid": {"p": 1.0},
            "command_timeout": 0.5}, "command_timeout",
      "unknown field (did you mean 'command_timeout_s'? known: command_timeout_s, joint, pid, type)"),
