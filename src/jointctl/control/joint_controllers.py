@@ -121,6 +121,8 @@ def derivative_law(parameters: dict) -> str:
     """The derivative law a position controller's YAML entry (a dict) asks for: its ``derivative``,
     else ``error`` (ros_controllers' law, which a real ros_control robot runs)."""
     return str(parameters.get("derivative", DERIVATIVE_ERROR)) if isinstance(parameters, dict) else DERIVATIVE_ERROR
+
+
 _TWO_PI = 2.0 * math.pi
 
 
