@@ -528,9 +528,13 @@ class TrajectoryExecutor(Controller):
         ``goal_time_s``, when the hardware still executes it that long after the goal's end. No path
         tolerance: the controller's timing, not the plan's, is the path's (as ROS-I's action server).
         Faults (a refused point, a lost connection, stale state) abort it in :meth:`update`."""
-        self._supervise_at = -math.inf
         hw = self.hardware
-        if hw.executing or time_s + 1e-9 < plan.end_s:
+        if time_s + 1e-9 < plan.end_s:  # nothing to decide before the goal's end: feedback only
+            self._executed_at_s = math.inf
+            self._supervise_at = min(self._next_feedback_s, plan.end_s)
+            return
+        self._supervise_at = -math.inf  # from its end, every cycle: the hardware's word may come any time
+        if hw.executing:
             self._executed_at_s = math.inf
             if self.goal_time_limited and time_s > plan.end_s + self.goal_time_s:
                 self.hardware.stop_motion()
