@@ -9,7 +9,8 @@ bandwidth is ``ωn·sqrt(1 - 2ζ² + sqrt(4ζ⁴ - 4ζ² + 2))`` and step oversh
 for a plain position command, and the default) the loop is ``(d s + p) / (m s² + (b + d) s + p)``:
 the zero makes the step overshoot more for the same gains (the measurement design of 10 % in 0.3 s
 overshoots 14 % there), so the gains are solved on that loop's own sampled model; the ζ of the spec
-then names the step's overshoot (``exp(-πζ/sqrt(1-ζ²))``), not the poles' damping. A velocity loop gets a P (``p``), making ``p / (m s + p + b)`` with bandwidth
+then names the step's overshoot (``exp(-πζ/sqrt(1-ζ²))``), not the poles' damping. A velocity loop
+gets a P (``p``), making ``p / (m s + p + b)`` with bandwidth
 ``(p + b)/m``. The continuous design is then corrected for the 1 kHz sample-and-hold: the sampled
 loop's model (python-control, :class:`~jointctl.identification.frequency_response.LoopModel`) is
 solved for the gains whose overshoot and -3 dB bandwidth meet the spec.
