@@ -10,7 +10,8 @@ The reference is position only (a plain command, no velocity), as the chapter's 
 it: the PID's derivative acts on the error's difference (``derivative: error``, ros_controllers' law)
 or on the measured speed (``derivative: measurement``), as the controller is configured. A velocity
 loop's reference carries a slow position term as well, a tenth of the lowest frequency, so that
-gravity does not walk the joint to a limit; the fit takes the reference as given, so the loop's own response is what is measured.
+gravity does not walk the joint to a limit; the fit takes the reference as given, so the loop's own
+response is what is measured.
 Simulated time; the amplitude keeps the joint inside its range (a third of the room to the nearer
 limit for a position loop; for a velocity loop the swing ``A/ω`` at the lowest frequency as well).
 
