@@ -131,6 +131,42 @@ class LoopModel:
         h = np.array(values)
         return 20 * np.log10(np.abs(h)), np.degrees(np.unwrap(np.angle(h)))
 
+    def unit_response(self, frequencies_hz) -> dict[str, np.ndarray]:
+        """The steady-state response of the sampled loop to a unit sine reference (1 m or rad for a
+        position loop, 1 m/s or rad/s for a velocity loop) at each of ``frequencies_hz``, complex:
+        ``position`` [m or rad], ``velocity`` [m/s or rad/s] and ``effort`` [N or N·m], the effort the
+        controller adds to what holds the joint at rest (gravity), i.e. what moves the plant. The
+        effort is read off the sampled plant, ``U = B⁺·(zI - A)·X``: exact for every law."""
+        a, bu, *_, a_cl, b_cl, _ = self._matrices()
+        eye, plant_eye = np.eye(a_cl.shape[0]), np.eye(2)
+        pinv = np.linalg.pinv(bu)
+        out = {"position": [], "velocity": [], "effort": []}
+        for f in np.asarray(frequencies_hz, dtype=float):
+            z = np.exp(1j * 2 * math.pi * f * self.period_s)
+            x = np.linalg.solve(z * eye - a_cl, b_cl)[:2, 0]
+            out["position"].append(x[0])
+            out["velocity"].append(x[1])
+            out["effort"].append((pinv @ ((z * plant_eye - a) @ x))[0])
+        return {k: np.array(v) for k, v in out.items()}
+
+    def simulate(self, reference) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(position, velocity, effort) of the sampled loop at each cycle of ``reference`` (one value a
+        loop period, the deviation from where the joint rests: m or rad for a position loop, m/s or
+        rad/s for a velocity loop), from rest; the same units as :meth:`unit_response`. The state
+        ``x`` steps as ``x⁺ = A x + B r``; the effort is ``B⁺·(x⁺ - A_plant x)`` on the plant's states
+        (filtered as transfer functions: linear, and fast on long references)."""
+        from scipy.signal import lfilter, ss2tf
+
+        a, bu, *_, a_cl, b_cl, _ = self._matrices()
+        pinv = np.linalg.pinv(bu)
+        n = a_cl.shape[0]
+        plant_a = np.hstack([a, np.zeros((2, n - 2))])
+        outputs = np.vstack([np.eye(n)[:2], pinv @ (a_cl[:2] - plant_a)])
+        direct = np.vstack([np.zeros((2, 1)), pinv @ b_cl[:2]])
+        r = np.asarray(reference, dtype=float)
+        numerators, denominator = ss2tf(a_cl, b_cl, outputs, direct)
+        return tuple(lfilter(numerator, denominator, r) for numerator in numerators)
+
     def loop_response(self, frequencies_hz) -> np.ndarray:
         """The loop transfer K(z)·(zI - A)⁻¹B at ``frequencies_hz`` (complex)."""
         a, bu, c, dv, *_ = self._matrices()
