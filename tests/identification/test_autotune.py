@@ -158,3 +158,52 @@ def test_autotune_writes_strict_json_with_null_for_what_it_did_not_measure(tmp_p
     written = json.loads((tmp_path / "metrics.json").read_text(), parse_constant=refuse)
     assert written["model"] == {"gain_margin_db": None, "overshoot_pct": None}
     assert yaml.safe_load((tmp_path / "gains.yaml").read_text())["ns"]["ctl"]["pid"] == {"p": 400.0, "d": 10.0}
+
+
+G = 9.81
+H = 0.001
+
+
+def test_max_effort_lowers_the_check_step_to_what_its_first_cycle_may_ask() -> None:
+    """ros_control's law: a step's first cycle asks p·step + m·g + d·step/period; with --max-effort 200 N the
+    check steps by (200 - m·g)/(p + d/period), and the robot's step stays at or under 200 N (no stop)."""
+    from jointctl.identification.safety import Safety, UserLimits
+
+    result = autotune(one_dof, "joint1_position_controller", bandwidth_hz=5.0, zeta=0.7, step=0.1,
+                      safety=Safety(limits=UserLimits(max_effort=200.0)))
+    p, d = result["gains"]["p"], result["gains"]["d"]
+    assert result["check_step"] == pytest.approx((200.0 - 1.01 * G) / (p + d / H), rel=1e-9)
+    assert "--max-effort 200" in result["note"]
+    step = result["robot"]["saturation"]["step"]
+    assert step["peak_effort"] <= 200.0 * (1 + 1e-6) and step["share"] == 0.0
+    assert result["robot"]["step_overshoot_pct"] == pytest.approx(4.6, abs=1.0)  # the same loop, a smaller step
+    assert result["warnings"] == []
+
+
+def test_a_spec_beyond_max_effort_is_refused_naming_it() -> None:
+    from jointctl.identification.safety import Safety, UserLimits
+
+    with pytest.raises(IdentificationError) as info:
+        autotune(one_dof_measurement, "joint1_position_controller", bandwidth_hz=5.0, step=0.1, check_on_robot=False,
+                 safety=Safety(limits=UserLimits(max_effort=30.0)))
+    assert info.value.field == "bandwidth_hz" and "--max-effort 30" in str(info.value)
+
+
+def test_the_check_step_stays_inside_the_workspace() -> None:
+    """--workspace -0.52:-0.48 leaves 0.3 of 20 mm for the step and its 4.6 % overshoot: 5.74 mm."""
+    from jointctl.identification.safety import Safety, UserLimits
+
+    result = autotune(one_dof, "joint1_position_controller", bandwidth_hz=5.0, zeta=0.7, step=0.1,
+                      check_on_robot=False, safety=Safety(limits=UserLimits(workspace=(-0.52, -0.48))))
+    assert result["check_step"] == pytest.approx(0.3 * 0.02 / (1 + overshoot_of(0.7)), rel=0.01)
+    assert result["step_plan"]["binds"] == "position" and "the workspace" in result["note"]
+
+
+def test_autotune_warns_when_its_check_saturated() -> None:
+    """With no share allowed, the kick's one cycle at the 1000 N limit (of 3000 watched) is reported."""
+    from jointctl.identification.safety import Safety
+
+    result = autotune(one_dof, "joint1_position_controller", bandwidth_hz=5.0, zeta=0.7, step=0.1,
+                      safety=Safety(saturation_share=0.0))
+    assert result["robot"]["saturation"]["step"]["share"] == pytest.approx(1 / 3000)
+    assert len(result["warnings"]) == 1 and "at the effort limit 1000 N" in result["warnings"][0]

@@ -15,17 +15,25 @@ gets a P (``p``), making ``p / (m s + p + b)`` with bandwidth
 loop's model (python-control, :class:`~jointctl.identification.frequency_response.LoopModel`) is
 solved for the gains whose overshoot and -3 dB bandwidth meet the spec.
 
-**Effort.** A step of ``step`` [m or rad; m/s or rad/s for a velocity loop] asks ``p·step`` at once,
-on top of the gravity load: when ``p·step + |gravity|`` exceeds the joint's effort limit the spec
-is refused, naming the bandwidth that step allows. With the derivative on the error the first cycle
-asks the kick ``d·step/period`` as well; when that exceeds the limit the check steps by the largest
-step that fits (``check_step``, said in ``note``): a clamped kick would not give the modelled response.
+**Effort, speed, room.** A step of ``step`` [m or rad; m/s or rad/s for a velocity loop] asks
+``p·step`` at once, on top of the gravity load: when ``p·step + |gravity|`` exceeds the joint's
+effort limit (or ``--max-effort``, when lower) the spec is refused, naming the bandwidth that step
+allows. With the derivative on the error the first cycle asks the kick ``d·step/period`` as well;
+when that exceeds the limit the check steps by the largest step that fits (``check_step``, said in
+``note``): a clamped kick would not give the modelled response. The step's peak is one cycle, so
+it may use the whole limit; its motion may not: the check step is also at most what keeps the
+model's step response (its overshoot included) within the position and speed budgets of
+:mod:`jointctl.identification.safety` (a fraction of the room to the nearer limit or
+``--workspace``, of the velocity limit or ``--max-velocity``), said in ``note`` as well.
 
 **Check.** Before they are offered, the gains are simulated on the sampled model and on the robot
-itself (the scenario with the new gains: a step of ``step`` from rest, and a stepped-sine sweep
-around the bandwidth), and both figures are reported. The gains are written as the robot's
-controller YAML (the chapter's format), the tuned controller's ``pid`` replaced, everything else as
-loaded.
+itself (the scenario with the new gains: a step of ``check_step`` from rest, and a stepped-sine sweep
+around the bandwidth, each sine at most ``check_step`` and inside the sweep's safe amplitude), and
+both figures are reported, with the share of the check's cycles at the actuator's effort or velocity
+limit (``robot.saturation``); above the threshold the result carries a warning (``warnings``), and a
+crossing of the user's limits stops the check and brings the joint back (SafetyStop). The gains are
+written as the robot's controller YAML (the chapter's format), the tuned controller's ``pid``
+replaced, everything else as loaded.
 """
 
 from __future__ import annotations
@@ -43,8 +51,11 @@ from jointctl.control.joint_controllers import derivative_law
 from jointctl.control.manager import read_yaml
 from jointctl.errors import ConfigError
 from jointctl.identification.frequency_response import (LoopModel, _crossing, loop_controller, measure,
-                                                         measure_servoed, model_plant, plant_of, servo_reference)
+                                                         measure_servoed, model_plant, plant_friction, plant_of,
+                                                         servo_reference)
 from jointctl.identification.plant_fit import IdentificationError
+from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Guard, Safety, SaturationMonitor, envelope_for,
+                                            run_guarded, saturation_text)
 from jointctl.recording.metrics_file import write_metrics
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
@@ -179,10 +190,11 @@ def spec_from_step(overshoot_pct: float, settling_s: float) -> tuple[float, floa
 
 def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: float = 0.7, step: float,
              plant: dict | None = None, out_dir: str | Path | None = None, check_on_robot: bool = True,
-             settling_s: float | None = None) -> dict:
+             settling_s: float | None = None, safety: Safety | None = None) -> dict:
     """Tune ``controller_name`` of the scenario ``scenario_for(overrides)`` gives (see the module
     docstring); the metrics (gains, predicted and simulated figures). ``plant`` as for
-    :func:`jointctl.identification.frequency_response.bode`."""
+    :func:`jointctl.identification.frequency_response.bode`; ``safety`` the user's limits and the
+    fractions of :mod:`jointctl.identification.safety`."""
     _check_spec(bandwidth_hz, step)
     scenario: Scenario = scenario_for(())
     session = Session(scenario)
@@ -195,11 +207,13 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
     gains = controller.pid.gains
     result = tune(controller_name, joint, loop, session.loop.period_s, plant, session.robot, pose, gravity,
                   controller.effort_limit, {"p": gains.p, "i": gains.i, "d": gains.d}, bandwidth_hz=bandwidth_hz,
-                  zeta=zeta, step=step, settling_s=settling_s, derivative=getattr(controller, "derivative", "error"))
+                  zeta=zeta, step=step, settling_s=settling_s, derivative=getattr(controller, "derivative", "error"),
+                  safety=safety, gravity_m_s2=scenario.gravity_m_s2)
     session.close()
     if check_on_robot:
         result["robot"] = _check_on_robot(scenario_for, controller_name, result["gains"], loop, result["check_step"],
-                                          bandwidth_hz)
+                                          bandwidth_hz, plant=plant, safety=safety)
+        _warn(result, safety)
     if out_dir is not None:
         source = Path(scenario.controller_file)
         _write(out_dir, source.name, read_yaml(source), controller_name, result)
@@ -214,7 +228,8 @@ def _check_spec(bandwidth_hz, step) -> None:
 
 def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: dict | None, robot, pose: dict,
          gravity: float | None, effort_limit: float, previous_gains: dict, *, bandwidth_hz: float, zeta: float,
-         step: float, settling_s: float | None = None, derivative: str = "error") -> dict:
+         step: float, settling_s: float | None = None, derivative: str = "error", safety: Safety | None = None,
+         gravity_m_s2=(0.0, 0.0, -9.81)) -> dict:
     """Design the gains for the spec and predict them on the sampled model (no robot involved): the
     plant from ``plant`` (an identification's metrics, its ``gravity_load_n`` the load) or else
     ``robot``'s model at ``pose`` with ``gravity`` [N or N·m, magnitude] as the load. Refused when
@@ -222,7 +237,14 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     is recorded in the spec when the spec was given as overshoot and settling time
     (:func:`spec_from_step` made ``zeta`` and ``bandwidth_hz`` of it). ``derivative`` is the law the
     position controller runs ("error", ros_controllers', or "measurement"): the design and the model
-    follow it."""
+    follow it. ``safety``'s ``--max-effort`` lowers ``effort_limit`` [N or N·m]; its position and
+    speed budgets (the robot at ``pose``, under ``gravity_m_s2``) bound the check step (see the
+    module docstring)."""
+    safety = safety or DEFAULT
+    user_effort = safety.limits.max_effort
+    effort_flag = "effort limit"
+    if user_effort is not None and user_effort < effort_limit:
+        effort_limit, effort_flag = user_effort, "--max-effort"
     if plant is not None:
         mass, damping = plant_of(plant)
         gravity = abs(float(plant.get("gravity_load_n", 0.0)))
@@ -241,7 +263,7 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
         else:
             achievable = _achievable_hz(mass, damping, loop, zeta, p_max)
         raise IdentificationError(
-            f"a step of {step:g} would ask {need:.4g} of the joint's effort limit {effort_limit:g} (p {gains['p']:.4g}"
+            f"a step of {step:g} would ask {need:.4g} of the joint's {effort_flag} {effort_limit:g} (p {gains['p']:.4g}"
             f" and a gravity load of {gravity:.4g}); the most this step allows is "
             f"{'about ' if loop == 'position' and derivative == 'error' else ''}{achievable:.3g} Hz",
             field="bandwidth_hz", value=bandwidth_hz)
@@ -253,9 +275,11 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
         check_step = (effort_limit - gravity) / (gains["p"] + gains["d"] / period_s)
         note = (f"the check steps by {check_step:.3g}, not {step:g}: with the derivative on the error a step's "
                 f"first cycle asks d·step/period more (the derivative kick, {kick:.4g} for {step:g}), and "
-                f"{step:g} would exceed the effort limit {effort_limit:g} there; larger steps overshoot less than "
+                f"{step:g} would exceed the {effort_flag} {effort_limit:g} there; larger steps overshoot less than "
                 "designed (the kick is clamped)")
     model = LoopModel(mass, damping, gains["p"], gains["i"], gains["d"], period_s, loop, derivative)
+    check_step, note, step_plan = _bounded_step(model, robot, joint, pose, safety, gravity_m_s2, plant, loop,
+                                                step, check_step, note, effort_limit, gravity)
     predicted = {"bandwidth_hz": _model_bandwidth(model, bandwidth_hz)}
     if loop == "position":
         t, y = _model_step(model, seconds=max(3.0, 3.0 * (settling_s or 0.0)))
@@ -264,17 +288,71 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     return {"controller": controller_name, "joint": joint, "loop": loop, "derivative": derivative if loop == "position"
             else None, "plant_source": source, "mass": mass,
             "damping": damping, "gravity_load": gravity, "effort_limit": effort_limit, "step": step,
-            "check_step": check_step, **({"note": note} if note else {}),
+            "check_step": check_step, **({"note": note} if note else {}), "step_plan": step_plan,
             "spec": {"bandwidth_hz": bandwidth_hz, "zeta": zeta if loop == "position" else None,
                      "overshoot_pct": 100 * overshoot_of(zeta) if loop == "position" else None,
                      "settling_s": settling_s},
             "gains": gains, "model": predicted, "previous_gains": dict(previous_gains)}
 
 
+def _bounded_step(model: LoopModel, robot, joint: str, pose: dict, safety: Safety, gravity_m_s2, plant, loop: str,
+                  asked: float, check_step: float, note: str | None, effort_limit: float, gravity: float):
+    """(check step, note, its plan): ``check_step`` (``asked``, or less for the effort) made no larger
+    than what keeps the model's step response within the position and speed budgets of ``safety``
+    (the robot at ``pose``); the plan holds the step's predicted peaks beside their limits and what
+    binds: "position", "velocity", "effort" or "step" (the step asked fits)."""
+    n = int(round(3.0 / model.period_s))
+    q, v, u = model.simulate(np.ones(n))
+    # Per unit step: the swing (a position loop's reference counts too), the speed and the effort.
+    per_unit = {"position": max(1.0 if loop == "position" else 0.0, float(np.abs(q).max())),
+                "velocity": float(np.abs(v).max()), "effort": float(np.abs(u).max())}
+    envelope = envelope_for(robot, joint, float(pose.get(joint, 0.0)), safety, pose=pose, gravity_m_s2=gravity_m_s2,
+                            friction=plant_friction(plant))
+    budgets = envelope.budgets()
+    limits = {k: budgets[k] / per_unit[k] if per_unit[k] > 0 else math.inf for k in ("position", "velocity")}
+    binds = min(limits, key=limits.get)
+    if limits[binds] < check_step:
+        unit = envelope.unit + ("/s" if loop == "velocity" else "")
+        names = envelope.limit_names()
+        extra = (f"the check steps by {limits[binds]:.3g} {unit}, not {check_step:g}: its response would "
+                 f"{'swing' if binds == 'position' else 'move at'} {per_unit[binds] * check_step:.3g} "
+                 f"{envelope.unit}{'/s' if binds == 'velocity' else ''}, beyond "
+                 f"{safety.range_fraction if binds == 'position' else safety.speed_fraction:g} of "
+                 f"{names[binds]} ({budgets[binds]:.3g})")
+        note = f"{note}; {extra}" if note else extra
+        check_step = limits[binds]
+    binds = binds if limits[binds] <= check_step * (1 + 1e-9) else "effort" if check_step < asked else "step"
+    plan = {"step": check_step, "binds": binds,
+            "peak_position": per_unit["position"] * check_step, "peak_velocity": per_unit["velocity"] * check_step,
+            "peak_effort": per_unit["effort"] * check_step + gravity, "effort_limit": effort_limit,
+            "velocity_limit": envelope.velocity_max, "window": list(envelope.window), "room": envelope.room,
+            "budgets": budgets}
+    return check_step, note, plan
+
+
+def _warn(result: dict, safety: Safety | None) -> None:
+    """Add a warning to ``result`` (``warnings``) for each part of the check on the robot whose share of
+    cycles at the actuator's limits was above the threshold."""
+    safety = safety or DEFAULT
+    robot = result.get("robot") or {}
+    saturation = robot.get("saturation") or {}
+    warnings_ = []
+    step = saturation.get("step")
+    if step and step["share"] > safety.saturation_share:
+        warnings_.append(f"the check step saturated the actuator: {step['text']}; the step figures are not the "
+                         "linear loop's")
+    sweep = saturation.get("sweep_share") or []
+    hit = [f for f, share in zip(saturation.get("sweep_hz") or [], sweep) if share > safety.saturation_share]
+    if hit:
+        warnings_.append(f"the check sweep saturated the actuator at {', '.join(f'{f:.3g}' for f in hit)} Hz; the "
+                         "measured bandwidth is not the linear loop's")
+    result["warnings"] = warnings_
+
+
 def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: float, zeta: float = 0.7,
                      step: float, plant: dict | None = None, gravity_m_s2=(0.0, 0.0, -9.81),
                      out_dir: str | Path | None = None, check_on_robot: bool = True,
-                     settling_s: float | None = None) -> dict:
+                     settling_s: float | None = None, safety: Safety | None = None) -> dict:
     """Tune a loop that runs on a served robot (``session.hardware`` a
     :class:`~jointctl.ros.served_hardware.ServedRobotHardware`: the served node's controller, its
     gains through dynamic_reconfigure). The design is :func:`tune`'s; the check sets the new gains
@@ -294,14 +372,16 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
     law = derivative_law(hardware.controller_parameters().get(controller_name.rsplit("/", 1)[-1], {}))
     result = tune(controller_name, joint, loop, session.loop.period_s, plant, session.robot, pose, gravity,
                   effort_limit, previous, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s,
-                  derivative=law)
+                  derivative=law, safety=safety, gravity_m_s2=gravity_m_s2)
     if check_on_robot:
         hardware.set_gains(controller_name, result["gains"])
         try:
-            result["robot"] = _check_servoed(session, joint, loop, result["check_step"], bandwidth_hz)
+            result["robot"] = _check_servoed(session, joint, loop, result["check_step"], bandwidth_hz,
+                                             gains=result["gains"], derivative=law, plant=plant, safety=safety)
         finally:
             hardware.set_gains(controller_name, previous)
         result["gains_restored"] = hardware.gains(controller_name)
+        _warn(result, safety)
     if out_dir is not None:
         namespace = hardware.namespace
         _write(out_dir, f"{namespace}_tuned_params.yaml", {namespace: hardware.controller_parameters()},
@@ -339,74 +419,117 @@ def _overrides(controller_name: str, gains: dict) -> list[str]:
 
 
 def _check_on_robot(scenario_for, controller_name: str, gains: dict, loop: str, step: float,
-                    bandwidth_hz: float) -> dict:
-    """The simulated robot with the new gains: a step from rest, and a sweep around the bandwidth."""
+                    bandwidth_hz: float, *, plant: dict | None = None, safety: Safety | None = None) -> dict:
+    """The simulated robot with the new gains: a step from rest, and a sweep around the bandwidth (each
+    sine at most ``step``, inside the safe amplitude); the saturation of both."""
     scenario = scenario_for(_overrides(controller_name, gains))
     session = Session(scenario)
     controller = session.manager.controller(controller_name)
-    figures = _step(session, controller.joint, controller.set_reference, loop, step)
+    figures = _step(session, controller.joint, controller.set_reference, loop, step, safety=safety,
+                    effort_limit=controller.effort_limit,
+                    reference=controller.reference_input[0] if loop == "position" else None)
     frequencies = np.logspace(math.log10(bandwidth_hz / 2.5), math.log10(bandwidth_hz * 2.5), 15)
-    points, _ = measure(scenario, controller_name, frequencies, amplitude=step)
-    low, _ = measure(scenario, controller_name, [bandwidth_hz / 20], amplitude=step)
+    points, _ = measure(scenario, controller_name, frequencies, amplitude_cap=step, plant=plant, safety=safety)
+    low, _ = measure(scenario, controller_name, [bandwidth_hz / 20], amplitude_cap=step, plant=plant, safety=safety)
     figures["bandwidth_hz"] = _crossing(frequencies, np.array([p.gain_db for p in points]) - low[0].gain_db,
                                         -3.0103)
+    _sweep_saturation(figures, [*low, *points])
     return figures
 
 
-def _check_servoed(session: Session, joint: str, loop: str, step: float, bandwidth_hz: float) -> dict:
+def _sweep_saturation(figures: dict, points) -> None:
+    """The check sweep's amplitudes and shares of saturated cycles, per frequency, into ``figures['saturation']``."""
+    saturation = figures.setdefault("saturation", {})
+    saturation["sweep_hz"] = [p.frequency_hz for p in points]
+    saturation["sweep_amplitude"] = [p.amplitude for p in points]
+    saturation["sweep_share"] = [p.saturation for p in points]
+
+
+def _check_servoed(session: Session, joint: str, loop: str, step: float, bandwidth_hz: float, *,
+                   gains: dict | None = None, derivative: str = "error", plant: dict | None = None,
+                   safety: Safety | None = None) -> dict:
     """The served robot with the new gains: a step from rest and a shorter sweep (real time), the
     sweep's gain taken relative to a fifth of the bandwidth."""
     _, set_reference = servo_reference(session.hardware, joint)
     frequencies = [bandwidth_hz / 5, *np.logspace(math.log10(bandwidth_hz / 2), math.log10(bandwidth_hz * 2), 7)]
-    points, _ = measure_servoed(session, joint, frequencies, amplitude=step, settle_s=0.5, measure_periods=3,
-                                measure_s=0.5)
+    points, context = measure_servoed(session, joint, frequencies, amplitude_cap=step, settle_s=0.5,
+                                      measure_periods=3, measure_s=0.5, gains=gains, derivative=derivative,
+                                      plant=plant, safety=safety)
     gain = np.array([p.gain_db for p in points[1:]])
-    figures = _step(session, joint, set_reference, loop, step, hold_s=0.5, after_s=2.0)
+    figures = _step(session, joint, set_reference, loop, step, hold_s=0.5, after_s=2.0, safety=safety,
+                    reference=context["rest"] if loop == "position" else None)
     figures["bandwidth_hz"] = _crossing(np.array(frequencies[1:]), gain - points[0].gain_db, -3.0103)
-    set_reference(figures["step_start"] if loop == "position" else 0.0)  # back where it started
+    _sweep_saturation(figures, points)
+    # Back where it started: the reference it held (a step as planned, the other way).
+    set_reference(figures["step_reference"] if loop == "position" else 0.0)
     with session:
         session.run(1.0)
     return figures
 
 
 def _step(session: Session, joint: str, set_reference, loop: str, step: float, *, hold_s: float = 1.0,
-          after_s: float = 3.0) -> dict:
+          after_s: float = 3.0, safety: Safety | None = None, effort_limit: float | None = None,
+          reference: float | None = None) -> dict:
     """A step of ``step`` from rest after ``hold_s``, watched for ``after_s``: overshoot [%] and the
-    damping ratio it implies (a position loop), start and final values."""
+    damping ratio it implies (a position loop), start and final values, and the share of its cycles
+    at the actuator's limits; the user's limits guarded (SafetyStop, the joint brought back). A
+    position loop's reference steps from ``reference``, the one it holds (default: where the joint
+    is; a loop under gravity rests below its reference, and stepping from there would step the
+    reference by less than ``step``, or backwards, the derivative on the error kicking accordingly)."""
+    safety = safety or DEFAULT
     hardware = session.hardware
     index = hardware.joint_index(joint)
     measured = hardware.position if loop == "position" else hardware.velocity
     samples: list[float] = []
     start: dict = {}
     began = session.loop.time_s
+    hardware.read()
+    lower, upper, _ = session.robot.joint(joint).range_and_speed()
+    held = hardware.position[index] if reference is None or loop != "position" else float(reference)
+    envelope = envelope_for(session.robot, joint, held, safety, effort_limit=effort_limit,
+                            pose=dict(zip(hardware.joint_names, hardware.position)))
+    guard = Guard(hardware, index, envelope, loop=loop, start=held if loop == "position" else 0.0,
+                  band=GUARD_FRACTION * (upper - lower) if math.isfinite(upper - lower) else math.inf)
+    monitor = SaturationMonitor(hardware, index, envelope.effort_limit, envelope.velocity_limit,
+                                safety.saturation_margin)
 
     def drive(time_s: float) -> None:
         if time_s - began >= hold_s:
             if "value" not in start:
                 start["value"] = measured[index]
-                start["reference"] = hardware.position[index] if loop == "position" else 0.0
-            set_reference(start["reference"] + step)
+                start["reference"] = held if loop == "position" else 0.0
+            set_reference(guard.reference(time_s, start["reference"] + step))
+        else:
+            guard.reference(time_s, held if loop == "position" else 0.0)
 
     def record(time_s: float) -> None:
         if time_s - began >= hold_s:
             samples.append(measured[index])
 
     session.loop.add_input(drive)
-    session.loop.add_observer(record)
+    watchers = (record, monitor, guard.observe)  # bound once: removal compares identity
+    for hook in watchers:
+        session.loop.add_observer(hook)
     try:
-        with session:
-            session.run(hold_s + after_s)
+        run_guarded(session, hold_s + after_s, guard)
     finally:
         session.loop.remove_input(drive)
-        session.loop.remove_observer(record)
+        for hook in watchers:
+            session.loop.remove_observer(hook)
+    if guard.trip is not None:
+        raise guard.error("the check step")
     y = np.array(samples)
     final = float(y[-200:].mean()) if y.size >= 400 else float(y[-max(1, y.size // 5):].mean())
     rise = final - start["value"]
     overshoot = 100 * (y.max() - final) / rise if rise > 0 else math.nan
     settling = settling_time(np.arange(y.size) * session.loop.period_s, y, start["value"], final)
+    share = monitor.share(began + hold_s - 1e-9)
     return {"step_overshoot_pct": float(overshoot) if loop == "position" else None,
             "step_zeta": zeta_of(overshoot / 100) if loop == "position" else None,
-            "step_settling_s": settling, "step_final": final, "step_start": start["value"]}
+            "step_settling_s": settling, "step_final": final, "step_start": start["value"],
+            "step_reference": start["reference"],
+            "saturation": {**monitor.describe(), "threshold": safety.saturation_share,
+                           "step": {**share, "text": saturation_text(share, monitor, envelope.unit)}}}
 
 
 def _write(out_dir, file_name: str, document: dict, controller_name: str, result: dict) -> None:

@@ -12,8 +12,16 @@ or on the measured speed (``derivative: measurement``), as the controller is con
 loop's reference carries a slow position term as well, a tenth of the lowest frequency, so that
 gravity does not walk the joint to a limit; the fit takes the reference as given, so the loop's own
 response is what is measured.
-Simulated time; the amplitude keeps the joint inside its range (a third of the room to the nearer
-limit for a position loop; for a velocity loop the swing ``A/ω`` at the lowest frequency as well).
+Simulated time (or the robot's, on hardware). **Amplitudes**: each frequency gets the largest
+amplitude whose predicted motion (the model below, steady state at that frequency) keeps the joint's
+position, speed and effort inside fractions of its limits and the user's (``--max-effort``,
+``--max-velocity``, ``--workspace``): the rule of :mod:`jointctl.identification.safety`, so the
+amplitude shrinks where the loop resonates or its effort grows with frequency; the whole timetable is
+then simulated on the model and a sine whose start would leave a budget is made smaller
+(:func:`plan_sweep`). The amplitude used is reported per point. **Saturation**: the share of each
+point's cycles at the actuator's effort or velocity limit is reported; a point above the threshold is
+``saturated``, drawn apart and left out of the figures of merit. A crossing of a limit stops the
+sweep and brings the joint back (:class:`~jointctl.identification.safety.Guard`).
 
 **Model.** The joint as a mass (or inertia) ``m`` with viscous damping ``b`` (the identified plant,
 or the URDF's mass and damping), driven by the controller as configured (``p``, ``i``, ``d`` of its
@@ -46,6 +54,8 @@ import numpy as np
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
 from jointctl.errors import ConfigError
 from jointctl.identification.plant_fit import IdentificationError
+from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Envelope, Guard, Safety, SaturationMonitor, allow,
+                                            envelope_for, predicted_peaks, run_guarded, sine_peaks)
 from jointctl.model.loader import load_robot_model
 from jointctl.recording.metrics_file import write_metrics
 from jointctl.scenario.session import Session
@@ -198,32 +208,51 @@ def _hz(w) -> float:
 
 @dataclass(frozen=True)
 class Point:
+    """One measured frequency: ``gain_db`` [dB] and ``phase_deg`` [deg] at ``frequency_hz`` [Hz], with
+    the sine's ``amplitude`` [m, rad, or per s] and the ``saturation`` share (a fraction of the point's
+    cycles at the actuator's effort or velocity limit, see :mod:`jointctl.identification.safety`);
+    ``saturated`` when that share is above the threshold."""
+
     frequency_hz: float
     gain_db: float
     phase_deg: float
+    amplitude: float = math.nan
+    saturation: float = 0.0
+    saturated: bool = False
 
 
 def measure(scenario: Scenario, controller_name: str, frequencies_hz, *, amplitude: float | None = None,
-            settle_s: float = 1.5, measure_periods: int = 4, measure_s: float = 1.0) -> tuple[list[Point], dict]:
+            settle_s: float = 1.5, measure_periods: int = 4, measure_s: float = 1.0, plant: dict | None = None,
+            safety: Safety | None = None, amplitude_cap: float | None = None) -> tuple[list[Point], dict]:
     """Stepped-sine measurement of ``controller_name``'s closed loop on the scenario's simulated robot,
     in simulated time (see the module docstring); (points, context) where context holds the loop,
-    joint, amplitude, gains and the loop time it took."""
+    joint, amplitudes, gains, the plan and the loop time it took. ``plant``, ``safety`` and
+    ``amplitude_cap`` as for :func:`sweep`."""
     return measure_in_session(Session(scenario), controller_name, frequencies_hz, amplitude=amplitude,
-                              settle_s=settle_s, measure_periods=measure_periods, measure_s=measure_s)
+                              settle_s=settle_s, measure_periods=measure_periods, measure_s=measure_s, plant=plant,
+                              safety=safety, amplitude_cap=amplitude_cap)
 
 
 def measure_in_session(session, controller_name: str, frequencies_hz, *, amplitude: float | None = None,
-                       settle_s: float = 1.5, measure_periods: int = 4,
-                       measure_s: float = 1.0) -> tuple[list[Point], dict]:
+                       settle_s: float = 1.5, measure_periods: int = 4, measure_s: float = 1.0,
+                       plant: dict | None = None, safety: Safety | None = None,
+                       amplitude_cap: float | None = None) -> tuple[list[Point], dict]:
     """:func:`measure` in a session that exists (a live robot's too); the gains are those the
     controller had when the sweep began."""
     controller, loop = loop_controller(session.manager, controller_name)
     gains = controller.pid.gains
+    law = getattr(controller, "derivative", "error")
+    as_dict = {"p": gains.p, "i": gains.i, "d": gains.d}
+    # A P(D) position loop holds gravity by a static error (a droop) unless an integral or feed-forward does.
+    droops = loop == "position" and not gains.i and "gravity" not in getattr(controller, "feedforward_terms", ())
     points, context = sweep(session, controller.joint, frequencies_hz, controller.set_reference, loop=loop,
                             amplitude=amplitude, settle_s=settle_s, measure_periods=measure_periods,
-                            measure_s=measure_s)
-    context["gains"] = {"p": gains.p, "i": gains.i, "d": gains.d}
-    context["derivative"] = getattr(controller, "derivative", "error")
+                            measure_s=measure_s, gains=as_dict, derivative=law, plant=plant, safety=safety,
+                            amplitude_cap=amplitude_cap, effort_limit=controller.effort_limit,
+                            droop_gain=gains.p if droops else None,
+                            offset=controller.reference_input[0] if loop == "position" else None)
+    context["gains"] = as_dict
+    context["derivative"] = law
     return points, context
 
 
@@ -243,18 +272,32 @@ def loop_controller(manager, name: str):
 
 
 def measure_servoed(session: Session, joint: str, frequencies_hz, *, amplitude: float | None = None,
-                    settle_s: float = 1.5, measure_periods: int = 4, measure_s: float = 1.0) -> tuple[list[Point], dict]:
+                    settle_s: float = 1.5, measure_periods: int = 4, measure_s: float = 1.0,
+                    gains: dict | None = None, derivative: str = "error", plant: dict | None = None,
+                    safety: Safety | None = None, amplitude_cap: float | None = None) -> tuple[list[Point], dict]:
     """The same measurement on hardware that servos its joints itself (an industrial controller behind
     :class:`~jointctl.hardware.industrial.IndustrialHardware`, a robot served on the ROS graph): the
     sine goes straight to the joint's position (or velocity) command interface, the response is the
     position (or velocity) the hardware reports. ``session`` must start no controller that commands
-    the joint; it runs as it is paced (the wall clock, for real hardware)."""
+    the joint; it runs as it is paced (the wall clock, for real hardware). With the loop's ``gains``
+    (``{"p", "i", "d"}``, a served ros_control loop's) and ``derivative`` law the amplitudes are
+    planned on its model; without, on the reference alone (no effort is predicted)."""
     owner = session.manager.commanding(joint)
     if owner is not None:
         raise ConfigError(f"controller {owner.name!r} commands it; start none that does", field="--joint", value=joint)
     loop, set_reference = servo_reference(session.hardware, joint)
+    droop = gains["p"] if gains is not None and loop == "position" and not gains.get("i") else None
     return sweep(session, joint, frequencies_hz, set_reference, loop=loop, amplitude=amplitude,
-                 settle_s=settle_s, measure_periods=measure_periods, measure_s=measure_s)
+                 settle_s=settle_s, measure_periods=measure_periods, measure_s=measure_s, gains=gains,
+                 derivative=derivative, plant=plant, safety=safety, amplitude_cap=amplitude_cap, droop_gain=droop,
+                 offset=held_reference(session.hardware, joint) if loop == "position" else None)
+
+
+def held_reference(hardware, joint: str) -> float | None:
+    """The position reference a served loop held when this side connected (its ``state`` topic's set
+    point, :attr:`~jointctl.ros.served_hardware.ServedRobotHardware.set_points`), or None when unknown."""
+    value = (getattr(hardware, "set_points", None) or {}).get(joint)
+    return float(value) if isinstance(value, (int, float)) and math.isfinite(value) else None
 
 
 def servo_reference(hardware, joint: str) -> tuple[str, object]:
@@ -276,10 +319,143 @@ def servo_reference(hardware, joint: str) -> tuple[str, object]:
     return loop, set_reference
 
 
+def loop_model(robot, joint: str, pose: dict, gains: dict, period_s: float, loop: str, derivative: str,
+               plant: dict | None = None) -> tuple[LoopModel, str]:
+    """(the LoopModel of ``joint``'s loop with ``gains``, where its plant came from): the plant from
+    ``plant`` (an identification's metrics) or else ``robot``'s model at ``pose`` (joint name -> position)."""
+    if plant is not None:
+        mass, damping = plant_of(plant)
+        source = "identified"
+    else:
+        mass, damping = model_plant(robot, joint, pose)
+        source = "robot model"
+    model = LoopModel(float(mass), float(damping), gains["p"], gains["i"], gains["d"], period_s, loop,
+                      derivative if derivative in ("error", "measurement") else "error")
+    return model, source
+
+
+def plant_friction(plant: dict | None) -> float | None:
+    """The Coulomb friction of an identification's metrics [N or N·m], or None when it has none."""
+    if plant is None:
+        return None
+    value = plant.get("friction_n", plant.get("friction_n_m"))
+    return abs(float(value)) if isinstance(value, (int, float)) and math.isfinite(value) else None
+
+
+def schedule_of(frequencies, start_s: float, settle_s: float, measure_periods: int,
+                measure_s: float) -> list[tuple[float, float, float, float]]:
+    """The stepped sines' timetable from ``start_s`` [s]: (frequency [Hz], start, measuring from, end)
+    each; each sine settles ``settle_s`` and at least two periods, then is measured over at least
+    ``measure_periods`` periods and ``measure_s``; both spans are whole periods, so each sine ends where
+    it began (at the rest reference) and the next begins there: the reference never jumps."""
+    schedule = []
+    t0 = start_s
+    for f in frequencies:
+        settle = math.ceil(max(settle_s, 2.0 / f) * f - 1e-9) / f
+        span = math.ceil(max(measure_periods, measure_s * f) - 1e-9) / f
+        schedule.append((f, t0, t0 + settle, t0 + settle + span))
+        t0 += settle + span
+    return schedule
+
+
+def plan_sweep(frequencies_hz, envelope: Envelope, model: LoopModel | None, *, loop: str, period_s: float,
+               amplitude: float | None = None, amplitude_cap: float | None = None, settle_s: float = 1.5,
+               measure_periods: int = 4, measure_s: float = 1.0, lead_s: float = 0.5) -> dict:
+    """The amplitude of each stepped sine (the rule of :mod:`jointctl.identification.safety`) and what
+    ``model`` predicts of the sweep: per frequency the largest safe amplitude (steady state), the
+    limit that binds ("cap" where ``amplitude_cap`` is the smaller) and the amplitude used (``amplitude``
+    at every frequency, refused where it is beyond the safe one; else the safe one, at most
+    ``amplitude_cap``); then the whole timetable is
+    simulated on the model from rest (the change from one sine to the next included) and a sine
+    whose transient would leave a budget is made smaller until none does. Returns the ``schedule``
+    (:func:`schedule_of`), per-point ``rows`` (frequency_hz, safe_amplitude, binds, amplitude, predicted
+    peaks beside their limits, reduced_for_transient) and the ``envelope``."""
+    frequencies = [float(f) for f in frequencies_hz]
+    schedule = schedule_of(frequencies, lead_s, settle_s, measure_periods, measure_s)
+    allowances = [allow(sine_peaks(model, f, loop), envelope) for f in frequencies]
+    if amplitude is not None:
+        for f, allowance in zip(frequencies, allowances):
+            allowance.refuse_beyond(amplitude, what=f" at {f:.3g} Hz")
+        amplitudes = [float(amplitude)] * len(frequencies)
+    else:
+        amplitudes = [a.amplitude if amplitude_cap is None else min(a.amplitude, amplitude_cap) for a in allowances]
+    peaks = None
+    if model is not None:
+        budgets = envelope.budgets()
+        for _ in range(8):
+            peaks = _schedule_peaks(model, schedule, amplitudes, period_s, loop)
+            worst = [max(_used(p, envelope)[k] / budgets[k] if budgets[k] > 0 and math.isfinite(budgets[k]) else 0.0
+                         for k in ("position", "velocity", "effort")) for p in peaks]
+            if max(worst) <= 1 + 1e-9:
+                break
+            if amplitude is not None:
+                k = int(np.argmax(worst))
+                raise IdentificationError(
+                    f"must be positive and at most {amplitudes[k] / worst[k]:.4g} {envelope.unit} at "
+                    f"{frequencies[k]:.3g} Hz: the change from the sine before it would leave the budget there",
+                    field="amplitude", value=amplitude)
+            amplitudes = [a / w * 0.999 if w > 1 else a for a, w in zip(amplitudes, worst)]
+    rows = []
+    for k, (f, allowance, a) in enumerate(zip(frequencies, allowances, amplitudes)):
+        predicted = allowance.predicted(a)
+        if peaks is not None:  # the timetable's own peaks, transients included
+            predicted = predicted_peaks(envelope, envelope.droop + peaks[k]["position"], peaks[k]["velocity"],
+                                        peaks[k]["effort"])
+        capped = amplitude is None and amplitude_cap is not None and amplitude_cap < allowance.amplitude
+        rows.append({"frequency_hz": f, "safe_amplitude": allowance.amplitude,
+                     "binds": "cap" if capped else allowance.binds, "amplitude": a, "predicted": predicted,
+                     "reduced_for_transient": a < (min(allowance.amplitude, amplitude_cap) if capped
+                                                   else allowance.amplitude) * (1 - 1e-9)})
+    return {"schedule": schedule, "rows": rows, "envelope": envelope, "loop": loop,
+            "duration_s": schedule[-1][3] + 0.1 if schedule else 0.0}
+
+
+def _used(peaks: dict, envelope: Envelope) -> dict:
+    """What a sine's peaks use of each budget: the swing, the speed, and the effort with the gravity
+    stiffness over the swing."""
+    return {"position": peaks["position"], "velocity": peaks["velocity"],
+            "effort": peaks["effort"] + envelope.stiffness * peaks["position"]}
+
+
+def _schedule_peaks(model: LoopModel, schedule, amplitudes, period_s: float, loop: str) -> list[dict]:
+    """Per sine of ``schedule`` at ``amplitudes``, the model's largest position swing, speed and effort
+    over its span (the reference's own swing counted, as in the rule), simulated from rest."""
+    start = schedule[0][1]
+    n = int(round((schedule[-1][3] - start) / period_s)) + 200
+    t = start + np.arange(n) * period_s
+    r = np.zeros(n)
+    spans = []
+    for (f, t0, _, t1), a in zip(schedule, amplitudes):
+        window = (t >= t0 - 1e-9) & (t < t1 - 1e-9)
+        r[window] = a * np.sin(2 * math.pi * f * (t[window] - t0))
+        spans.append(window)
+    q, v, u = model.simulate(r)
+    own = r if loop == "position" else None
+    peaks = []
+    for (f, *_), a, window in zip(schedule, amplitudes, spans):
+        swing = np.abs(q[window]).max() if window.any() else 0.0
+        swing = max(swing, a if own is not None else a / (2 * math.pi * f))
+        peaks.append({"position": float(swing), "velocity": float(np.abs(v[window]).max()),
+                      "effort": float(np.abs(u[window]).max())})
+    return peaks
+
+
 def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: str, amplitude: float | None,
-          settle_s: float, measure_periods: int, measure_s: float) -> tuple[list[Point], dict]:
+          settle_s: float, measure_periods: int, measure_s: float, gains: dict | None = None,
+          derivative: str = "error", plant: dict | None = None, safety: Safety | None = None,
+          amplitude_cap: float | None = None, effort_limit: float | None = None,
+          droop_gain: float | None = None, offset: float | None = None) -> tuple[list[Point], dict]:
     """Run the stepped sines on ``session`` (any hardware), handing each cycle's reference to
-    ``set_reference``; (points, context)."""
+    ``set_reference``; (points, context). The amplitudes are planned by :func:`plan_sweep` on the loop
+    model (``gains`` ``{"p", "i", "d"}`` and ``derivative``, the plant from ``plant`` or the robot model;
+    no model without gains), inside ``safety``'s limits; ``amplitude`` fixes one for every frequency
+    (refused where unsafe), ``amplitude_cap`` caps the planned ones. A position loop's sines are centred
+    on ``offset`` [m or rad], the reference the loop holds (default: where the joint is; a loop under
+    gravity rests below its reference, and a jump of the reference to there would kick a derivative on
+    the error by ``d·droop/period``). While it runs, the saturation of
+    every cycle is counted and a :class:`~jointctl.identification.safety.Guard` watches the limits:
+    a crossing stops the sweep, brings the joint back and raises SafetyStop."""
+    safety = safety or DEFAULT
     frequencies = [float(f) for f in frequencies_hz]
     hardware, robot = session.hardware, session.robot
     period = session.loop.period_s
@@ -289,37 +465,32 @@ def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: 
                                   field="frequencies_hz", value=frequencies)
     index = hardware.joint_index(joint)
     hardware.read()
-    rest = hardware.position[index]
-    lower, upper, _ = robot.joint(joint).range_and_speed()
-    room = min(rest - lower, upper - rest)
-    room = 1.0 if math.isinf(room) else room
-    safe = room / 3 if loop == "position" else room / 3 * 2 * math.pi * min(frequencies)
-    if amplitude is None:
-        amplitude = safe
-    elif not 0 < amplitude <= safe:
-        raise IdentificationError(f"must be positive and at most {safe:.4g} (a third of the room to the nearer limit)",
-                                  field="amplitude", value=amplitude)
-    # One schedule: each frequency's sine from its start time, settling then measuring whole periods.
-    schedule = []
-    t0 = session.loop.time_s + 0.5
-    for f in frequencies:
-        settle = max(settle_s, 2.0 / f)
-        span = math.ceil(max(measure_periods, measure_s * f)) / f
-        schedule.append((f, t0, t0 + settle, t0 + settle + span))
-        t0 += settle + span
+    rest = hardware.position[index] if offset is None or loop != "position" else float(offset)
+    pose = dict(zip(hardware.joint_names, hardware.position))
+    model = source = None
+    if gains is not None:
+        model, source = loop_model(robot, joint, pose, gains, period, loop, derivative, plant)
+    envelope = envelope_for(robot, joint, rest, safety, pose=pose, gravity_m_s2=session_gravity(session),
+                            friction=plant_friction(plant), droop_gain=droop_gain, effort_limit=effort_limit)
+    started = session.loop.time_s
+    plan = plan_sweep(frequencies, envelope, model, loop=loop, period_s=period, amplitude=amplitude,
+                      amplitude_cap=amplitude_cap, settle_s=settle_s, measure_periods=measure_periods,
+                      measure_s=measure_s, lead_s=0.5)
+    amplitudes = [row["amplitude"] for row in plan["rows"]]
+    schedule = [(f, started + a, started + b, started + c) for f, a, b, c in plan["schedule"]]
     samples: list[tuple[float, float, float]] = []  # one tuple per cycle: whole even when read from another thread
     state = {"k": 0}
     offset = rest if loop == "position" else 0.0
 
     def reference_at(time_s: float) -> float:
         k = state["k"]
-        while k < len(schedule) and time_s >= schedule[k][3]:
+        while k < len(schedule) and time_s >= schedule[k][3] - 1e-9:
             k += 1
         state["k"] = k
-        if k >= len(schedule) or time_s < schedule[k][1]:
+        if k >= len(schedule) or time_s < schedule[k][1] - 1e-9:
             return offset
         f, start = schedule[k][0], schedule[k][1]
-        return offset + amplitude * math.sin(2 * math.pi * f * (time_s - start))
+        return offset + amplitudes[k] * math.sin(2 * math.pi * f * (time_s - start))
 
     measured = hardware.position if loop == "position" else hardware.velocity
     # A velocity loop does not hold a position: gravity or friction would walk the joint to a limit. A
@@ -327,45 +498,85 @@ def sweep(session: Session, joint: str, frequencies_hz, set_reference, *, loop: 
     # fit uses the reference as given, so the loop's response is measured all the same.
     hold_per_s = 2 * math.pi * min(frequencies) / 10 if loop == "velocity" else 0.0
     given = [offset]
+    spec = robot.joint(joint)
+    lower, upper, _ = spec.range_and_speed()
+    guard = Guard(hardware, index, envelope, loop=loop, start=offset,
+                  band=GUARD_FRACTION * (upper - lower) if math.isfinite(upper - lower) else math.inf)
+    monitor = SaturationMonitor(hardware, index, envelope.effort_limit, envelope.velocity_limit,
+                                safety.saturation_margin)
 
     def drive(time_s: float) -> None:
-        given[0] = reference_at(time_s) + hold_per_s * (rest - hardware.position[index])
+        given[0] = guard.reference(time_s, reference_at(time_s) + hold_per_s * (rest - hardware.position[index]))
         set_reference(given[0])
 
     def record(time_s: float) -> None:
         samples.append((time_s, given[0], measured[index]))
 
-    started = session.loop.time_s
     session.loop.add_input(drive)
-    session.loop.add_observer(record)
+    watchers = (record, monitor, guard.observe)  # bound once: removal compares identity
+    for hook in watchers:
+        session.loop.add_observer(hook)
     try:
-        with session:
-            session.run(t0 + 0.1 - started)
+        run_guarded(session, plan["duration_s"], guard)
     finally:
         session.loop.remove_input(drive)
-        session.loop.remove_observer(record)
+        for hook in watchers:
+            session.loop.remove_observer(hook)
+    if guard.trip is not None:
+        raise guard.error("the sweep")
     # Reference and response at the same loop time: the response measured at the start of a cycle,
     # the reference that cycle's (held over the period that follows).
     t, r, y = np.array(list(samples)).T
-    points = []
-    for f, start, measure_from, end in schedule:
-        window = (t >= start) & (t < end)
+    points, shares = [], []
+    for (f, start, measure_from, end), a in zip(schedule, amplitudes):
+        window = (t >= start - 1e-9) & (t < end - 1e-9)
         fit = sinusoid_response(t[window] - start, r[window], y[window], frequency_hz=f,
                                 start_s=measure_from - start)
-        points.append(Point(f, 20 * math.log10(fit.amplitude_ratio), -fit.phase_lag_deg))
-    context = {"loop": loop, "joint": joint, "amplitude": amplitude, "rest": rest, "simulated_s": t0 - started,
-               "period_s": period}
+        share = monitor.share(start - 1e-9, end - 1e-9)
+        shares.append(share)
+        points.append(Point(f, 20 * math.log10(fit.amplitude_ratio), -fit.phase_lag_deg, a, share["share"],
+                            share["share"] > safety.saturation_share))
+    context = {"loop": loop, "joint": joint, "amplitude": max(amplitudes), "amplitudes": amplitudes, "rest": rest,
+               "simulated_s": plan["duration_s"], "period_s": period,
+               "plan": plan_summary(plan), "saturation": {**monitor.describe(), "threshold": safety.saturation_share,
+                                                          "peak_effort": [s["peak_effort"] for s in shares],
+                                                          "peak_velocity": [s["peak_velocity"] for s in shares]}}
+    if source is not None:
+        context["planned_on"] = source
     return points, context
 
 
+def plan_summary(plan: dict) -> dict:
+    """The parts of a :func:`plan_sweep` plan that go into metrics.json: per point the safe amplitude,
+    the binding limit and the predicted peaks; the envelope's limits and budgets."""
+    env: Envelope = plan["envelope"]
+    return {"joint": env.joint, "rest": env.rest, "window": list(env.window), "room": env.room, "unit": env.unit,
+            "velocity_limit": env.velocity_max, "effort_limit": env.effort_max, "bias": env.bias, "droop": env.droop,
+            "budgets": env.budgets(), "duration_s": plan["duration_s"],
+            "points": [{"frequency_hz": row["frequency_hz"], "amplitude": row["amplitude"],
+                        "safe_amplitude": row["safe_amplitude"], "binds": row["binds"],
+                        "reduced_for_transient": row["reduced_for_transient"],
+                        "peak_position": row["predicted"]["position"]["peak"],
+                        "peak_velocity": row["predicted"]["velocity"]["peak"],
+                        "peak_effort": row["predicted"]["effort"]["peak"]} for row in plan["rows"]]}
+
+
+def session_gravity(session) -> tuple[float, float, float]:
+    """The gravity [m/s²] a session's robot is under: its scenario's (a live page's too), else Earth's."""
+    scenario = getattr(session, "scenario", None) or getattr(getattr(session, "tuner", None), "scenario", None)
+    return tuple(getattr(scenario, "gravity_m_s2", (0.0, 0.0, -9.81)))
+
+
 def bode(scenario: Scenario, controller_name: str, frequencies_hz, *, plant: dict | None = None,
-         amplitude: float | None = None, out_dir: str | Path | None = None) -> dict:
+         amplitude: float | None = None, out_dir: str | Path | None = None, safety: Safety | None = None) -> dict:
     """Measure ``controller_name``'s closed loop at ``frequencies_hz`` and set it beside its model:
     the plant from ``plant`` (an identification's metrics: ``mass_kg``/``inertia_kg_m2`` and
     ``damping_*``) or else from the robot model (the joint's mass-matrix entry at the rest pose,
-    armature included, and its URDF damping). Writes ``bode.png`` and ``metrics.json`` to
-    ``out_dir`` when given; returns the metrics."""
-    points, context = measure(scenario, controller_name, frequencies_hz, amplitude=amplitude)
+    armature included, and its URDF damping). The amplitudes are planned on that model inside
+    ``safety``'s limits (:func:`plan_sweep`). Writes ``bode.png`` and ``metrics.json`` to ``out_dir``
+    when given; returns the metrics."""
+    points, context = measure(scenario, controller_name, frequencies_hz, amplitude=amplitude, plant=plant,
+                              safety=safety)
     robot = load_robot_model(scenario.robot.description)
     pose = {**scenario.initial_positions, context["joint"]: context["rest"]}
     return compare(points, context, controller_name, plant, robot, pose, out_dir=out_dir)
@@ -377,15 +588,8 @@ def compare(points: list[Point], context: dict, controller_name: str, plant: dic
     model: the plant from ``plant`` (an identification's metrics) or else from ``robot`` (the
     joint's mass-matrix entry at ``pose``, joint name -> position, and its URDF damping); write
     ``bode.png`` and ``metrics.json`` to ``out_dir`` when given; the metrics."""
-    if plant is not None:
-        mass, damping = plant_of(plant)
-        source = "identified"
-    else:
-        mass, damping = model_plant(robot, context["joint"], pose)
-        source = "robot model"
-    gains = context["gains"]
-    model = LoopModel(float(mass), float(damping), gains["p"], gains["i"], gains["d"], context["period_s"],
-                      context["loop"], context.get("derivative", "error"))
+    model, source = loop_model(robot, context["joint"], pose, context["gains"], context["period_s"], context["loop"],
+                               context.get("derivative", "error"), plant)
     result = analyse(points, model)
     result.update(controller=controller_name, plant_source=source, **context)
     if out_dir is not None:
@@ -427,16 +631,25 @@ def analyse(points: list[Point], model: LoopModel | None) -> dict:
     the lowest frequency on (its largest gain is at the first test frequency, 0.5 Hz by default, which
     is no resonance), and a gain still rising at the highest frequency peaks beyond the range (sweep
     higher to find it).
+
+    A point measured while the actuator saturated (``saturated``, see :class:`Point`) is kept in the
+    lists but left out of these figures (the loop it measured was not the linear loop): they are
+    read off the other points, and ``saturated_hz`` lists the points left out.
     """
     f = np.array([p.frequency_hz for p in points])
     gain = np.array([p.gain_db for p in points])
     phase = np.unwrap(np.radians([p.phase_deg for p in points]))
     phase = np.degrees(phase)
-    peak = resonance_peak(gain)
+    clean = np.array([not p.saturated for p in points], dtype=bool)
+    fc, gc, pc = f[clean], gain[clean], phase[clean]
+    peak = resonance_peak(gc)
     result = {"frequencies_hz": f.tolist(), "gain_db": gain.tolist(), "phase_deg": phase.tolist(),
-              "resonance_peak_db": None if peak is None else float(gain[peak]),
-              "resonance_hz": None if peak is None else float(f[peak]),
-              "bandwidth_hz": _crossing(f, gain, -3.0), "phase_minus_90_hz": _crossing(f, phase, -90.0)}
+              "amplitudes": [p.amplitude for p in points],
+              "saturation_share": [p.saturation for p in points], "saturated": [p.saturated for p in points],
+              "saturated_hz": f[~clean].tolist(),
+              "resonance_peak_db": None if peak is None else float(gc[peak]),
+              "resonance_hz": None if peak is None else float(fc[peak]),
+              "bandwidth_hz": _crossing(fc, gc, -3.0), "phase_minus_90_hz": _crossing(fc, pc, -90.0)}
     if model is not None:
         model_gain, model_phase = model.response(f)
         result["model"] = {"gain_db": model_gain.tolist(), "phase_deg": model_phase.tolist(), **model.margins(),
@@ -479,9 +692,14 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     fig, (ax_gain, ax_phase) = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
-    f = result["frequencies_hz"]
-    ax_gain.semilogx(f, result["gain_db"], "o", label="measured")
-    ax_phase.semilogx(f, result["phase_deg"], "o", label="measured")
+    f = np.asarray(result["frequencies_hz"])
+    hit = np.asarray(result.get("saturated", [False] * len(f)), dtype=bool)
+    for ax, key in ((ax_gain, "gain_db"), (ax_phase, "phase_deg")):
+        values = np.asarray(result[key])
+        ax.semilogx(f[~hit], values[~hit], "o", label="measured")
+        if hit.any():
+            ax.semilogx(f[hit], values[hit], "x", color="tab:red", markersize=9, markeredgewidth=2,
+                        label="saturated (left out)")
     if "model" in result:
         dense = np.logspace(math.log10(min(f)), math.log10(max(f)), 400)
         model = result["model"]
@@ -505,6 +723,7 @@ def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
     return path
 
 
-__all__ = ["LoopModel", "Point", "analyse", "bode", "compare", "loop_controller", "measure", "measure_in_session",
-           "measure_servoed", "model_plant", "plant_of", "resonance_peak", "servo_reference", "sweep",
-           "write_bode"]
+__all__ = ["LoopModel", "Point", "analyse", "bode", "compare", "held_reference", "loop_controller", "loop_model",
+           "measure", "measure_in_session", "measure_servoed", "model_plant", "plan_summary", "plan_sweep",
+           "plant_friction", "plant_of", "resonance_peak", "schedule_of", "servo_reference", "session_gravity",
+           "sweep", "write_bode"]
