@@ -52,3 +52,18 @@ def test_a_joint_resting_at_or_beyond_a_limit_cannot_be_excited() -> None:
         safe_chirp(0.0, -1.0, 0.0, 100.0)
     with pytest.raises(IdentificationError, match="outside its range"):
         safe_chirp(0.5, -1.0, 0.0, 100.0)
+
+
+def test_without_a_loop_model_the_planned_chirp_keeps_the_reference_inside() -> None:
+    """No model: the reference alone. Its speed peaks at half the 0.2 rad/s limit, measured on a fine grid;
+    the bound A·(2π·f_end + π/T) that safe_chirp uses is loose (the window is small where the frequency
+    is highest), so the planned chirp is larger than safe_chirp's."""
+    from jointctl.identification.excitation import planned_chirp
+    from jointctl.identification.safety import Envelope
+
+    envelope = Envelope("joint", 1.0, -3.0, 3.0, 0.2, math.inf)
+    chirp, allowance = planned_chirp(envelope, None, period_s=0.001, f_start_hz=0.2, f_end_hz=1.0, duration_s=10.0)
+    t = np.linspace(0.0, 10.0, 1_000_001)
+    speed = np.abs(np.gradient([chirp(x) for x in t], t)).max()
+    assert allowance.binds == "velocity" and speed == pytest.approx(0.1, rel=1e-3)
+    assert chirp.amplitude > safe_chirp(1.0, -3.0, 3.0, 0.2, f_start_hz=0.2, f_end_hz=1.0, duration_s=10.0).amplitude

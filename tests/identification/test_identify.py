@@ -81,18 +81,25 @@ def test_a_coulomb_friction_added_to_the_robot_is_recovered(tmp_path) -> None:
 
 
 def test_an_amplitude_beyond_the_limits_is_refused_before_anything_moves() -> None:
-    with pytest.raises(IdentificationError, match="at most 0.15") as info:
-        identify_on_robot(scenario_for_robot("one_dof", "position"), "joint1", amplitude=0.4)
+    # A 1 Hz sine (windowed) through the P loop: |T| = 1/sqrt((1 - r²)² + (2ζr)²) = 1.094 (r = 1/3.167, ζ 0.249);
+    # the swing A·|T| and the droop m·g/p = 24.8 mm may use 0.3 of the 0.5 m to the nearer limit.
+    with pytest.raises(IdentificationError, match="the joint's range binds") as info:
+        identify_on_robot(scenario_for_robot("one_dof", "position"), "joint1", amplitude=0.4, f_start_hz=1.0,
+                          f_end_hz=1.0)
     assert info.value.field == "amplitude"
+    safe = float(str(info.value).split("at most ")[1].split()[0])
+    assert safe == pytest.approx((0.3 * 0.5 - MASS_KG * G / 400.0) / 1.0944, rel=0.03)
 
 
 def test_the_guard_returns_the_joint_before_a_limit(tmp_path) -> None:
-    # Resonance: the P loop (ζ 0.25) doubles a 3.17 Hz reference. Resting at -0.85 m (0.15 m from the
-    # lower limit, 25 mm droop), the largest safe amplitude 0.045 m swings 0.09 m there: to -0.965 m,
-    # inside the guard's 0.05 m band. The guard returns the joint before it gets further.
-    scenario = scenario_for_robot("one_dof", "position", ["initial_positions.joint1=-0.85"])
+    # Resonance: planned on the chapter's plant (ζ 0.25: |T| 2 at 3.17 Hz), a copy of the robot damped by
+    # 2 N·s/m (ζ 0.05: |T| 10) swings five times more than planned. Resting at -0.85 m (0.15 m from the
+    # lower limit, 25 mm droop), it reaches the guard's 0.05 m band; the reference ramps back to the start.
+    from tests.identification.variants import one_dof_variant, plant
+
+    scenario = one_dof_variant(tmp_path, damping=2.0, initial=-0.85)
     with pytest.raises(IdentificationError, match="came within 0.05 of a limit") as info:
-        identify_on_robot(scenario, "joint1", f_start_hz=3.17, f_end_hz=3.17, out_dir=tmp_path)
+        identify_on_robot(scenario, "joint1", f_start_hz=3.17, f_end_hz=3.17, out_dir=tmp_path, plant=plant())
     from jointctl.recording.trace import load_trace
 
     q = load_trace(tmp_path / "trace.csv").joint("joint1", "position")

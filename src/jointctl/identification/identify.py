@@ -1,10 +1,15 @@
 """``jointctl identify``: excite a joint of a simulated robot (or read a recorded trace) and fit its model.
 
 On a robot, the joint's own position controller (the robot's ``position`` controller file, or
-another named one) follows a :func:`~jointctl.identification.excitation.safe_chirp` from where
-the joint rests while every other joint holds; the loop runs in simulated time. A guard watches
-the measured position: should it come within ``guard_fraction`` of the range of a limit, the
-reference returns to the start at once and the identification is refused saying where it went.
+another named one) follows a :func:`~jointctl.identification.excitation.planned_chirp` from where
+the joint rests while every other joint holds; the loop runs in simulated time. Its amplitude is the
+largest whose predicted position, speed and effort (the loop's model driven by the chirp) stay inside
+fractions of the joint's limits and the user's (the rule of :mod:`jointctl.identification.safety`).
+A guard watches the measured motion: should the joint come within ``GUARD_FRACTION`` of the range of
+a limit, or cross ``--workspace``, ``--max-velocity`` or ``--max-effort``, the reference ramps back
+to the start and the identification is refused saying what, where and when. The share of the
+excitation's cycles at the actuator's effort or velocity limit is measured (``excitation.saturation``
+in the metrics); above ``saturation_share`` (1 %) nothing is fitted.
 The recorded position, velocity and applied effort are fitted by
 :func:`~jointctl.identification.plant_fit.fit_plant`. On hardware that servos the joint itself (a
 robot another node serves on the ROS graph) :func:`identify_servoed` sends the same chirp to the
@@ -27,12 +32,14 @@ from pathlib import Path
 
 import numpy as np
 
-from jointctl.control.joint_controllers import JointPositionController
+from jointctl.control.joint_controllers import JointPositionController, derivative_law
 from jointctl.errors import ConfigError
-from jointctl.identification.excitation import Chirp, safe_chirp
-from jointctl.identification.frequency_response import servo_reference
+from jointctl.identification.excitation import Chirp, plan_identification
+from jointctl.identification.frequency_response import held_reference, servo_reference, session_gravity
 from jointctl.identification.plant_fit import (IdentificationError, PlantFit, accelerations, fit_plant,
                                                resample_uniform)
+from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Guard, Safety, SaturationMonitor, run_guarded,
+                                            saturation_text)
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
 from jointctl.recording.figures import plot_series
@@ -43,24 +50,25 @@ from jointctl.recording.trace import load_trace
 SETTLE_S = 1.0
 #: Rest after it, for the joint to come to rest again [s].
 SETTLE_AFTER_S = 2.0
-#: The guard's band: this fraction of the range from each limit.
-GUARD_FRACTION = 0.05
 
 
 def identify_on_robot(scenario: Scenario, joint: str, *, out_dir: str | Path | None = None,
                       amplitude: float | None = None, duration_s: float = 10.0, f_start_hz: float = 0.2,
-                      f_end_hz: float = 3.0, fit_friction: bool = True) -> tuple[PlantFit, dict]:
+                      f_end_hz: float = 3.0, fit_friction: bool = True, safety: Safety | None = None,
+                      plant: dict | None = None) -> tuple[PlantFit, dict]:
     """Excite ``joint`` of the scenario's robot and fit it; (fit, metrics). See the module docstring."""
     return identify_in_session(Session(scenario, out_dir=out_dir), joint, out_dir=out_dir, amplitude=amplitude,
                                duration_s=duration_s, f_start_hz=f_start_hz, f_end_hz=f_end_hz,
-                               fit_friction=fit_friction)
+                               fit_friction=fit_friction, safety=safety, plant=plant)
 
 
 def identify_in_session(session, joint: str, *, out_dir: str | Path | None = None, amplitude: float | None = None,
                         duration_s: float = 10.0, f_start_hz: float = 0.2, f_end_hz: float = 3.0,
-                        fit_friction: bool = True) -> tuple[PlantFit, dict]:
+                        fit_friction: bool = True, safety: Safety | None = None,
+                        plant: dict | None = None) -> tuple[PlantFit, dict]:
     """The same in a session that exists (a new one, or a live robot's: anything with ``loop``,
-    ``hardware``, ``robot``, ``manager`` and ``run``), through the joint's own position controller."""
+    ``hardware``, ``robot``, ``manager`` and ``run``), through the joint's own position controller.
+    ``safety`` (limits, fractions) and ``plant`` (an identification's metrics) plan the excitation."""
     _movable(session.robot, joint)
     controller = session.manager.commanding(joint)
     if not isinstance(controller, JointPositionController):
@@ -76,7 +84,8 @@ def identify_in_session(session, joint: str, *, out_dir: str | Path | None = Non
     session.loop.add_observer(record)
     try:
         excitation = _excite(session, joint, controller.set_reference, amplitude=amplitude, duration_s=duration_s,
-                             f_start_hz=f_start_hz, f_end_hz=f_end_hz)
+                             f_start_hz=f_start_hz, f_end_hz=f_end_hz, safety=safety, plant=plant,
+                             start=controller.reference_input[0])
     finally:
         session.loop.remove_observer(record)
     t, q, qd, u = (np.array(column) for column in zip(*samples))
@@ -86,7 +95,8 @@ def identify_in_session(session, joint: str, *, out_dir: str | Path | None = Non
 
 def identify_servoed(session: Session, joint: str, *, out_dir: str | Path | None = None,
                      amplitude: float | None = None, duration_s: float = 10.0, f_start_hz: float = 0.2,
-                     f_end_hz: float = 3.0, fit_friction: bool = True) -> tuple[PlantFit, dict]:
+                     f_end_hz: float = 3.0, fit_friction: bool = True, safety: Safety | None = None,
+                     plant: dict | None = None) -> tuple[PlantFit, dict]:
     """The same on hardware that servos the joint itself and records every state it receives (a
     robot served on the ROS graph, :class:`~jointctl.ros.served_hardware.ServedRobotHardware`):
     the chirp goes to the joint's position command interface (the served position loop's
@@ -101,7 +111,8 @@ def identify_servoed(session: Session, joint: str, *, out_dir: str | Path | None
                           "reference)", field="--joint", value=joint)
     hardware.start_recording()
     excitation = _excite(session, joint, set_reference, amplitude=amplitude, duration_s=duration_s,
-                         f_start_hz=f_start_hz, f_end_hz=f_end_hz)
+                         f_start_hz=f_start_hz, f_end_hz=f_end_hz, safety=safety, plant=plant,
+                         start=held_reference(hardware, joint))
     fit, t, q, qd, u = _fit_states(*hardware.recorded(joint), session.robot.joint(joint).type,
                                    loop_period_s=session.loop.period_s, fit_friction=fit_friction)
     return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u)
@@ -143,47 +154,90 @@ def _movable(robot, joint: str) -> None:
 
 
 def _excite(session: Session, joint: str, set_reference, *, amplitude, duration_s, f_start_hz,
-            f_end_hz) -> tuple[Chirp, float, float]:
-    """Run the safe chirp through ``set_reference`` (settle, excite, settle) with the limit guard;
-    (the chirp, the joint's lower and upper limits), or IdentificationError when the guard tripped
-    (the reference back at the start)."""
+            f_end_hz, safety: Safety | None = None, plant: dict | None = None,
+            start: float | None = None) -> tuple[Chirp, float, float, dict]:
+    """Run the planned chirp through ``set_reference`` (settle, excite, settle), its amplitude by the
+    rule of :mod:`jointctl.identification.safety` on the joint's loop model (the plant from ``plant``
+    or the robot model), from ``start`` [m or rad], the reference the loop holds (default: where the
+    joint is), with the saturation counted and the limits guarded; (the chirp, the joint's
+    lower and upper limits, a report of the plan and the saturation). SafetyStop when a limit was
+    crossed (the joint brought back), IdentificationError when the actuator saturated in more than
+    ``safety.saturation_share`` of the excitation's cycles (nothing fitted)."""
+    safety = safety or DEFAULT
     hardware = session.hardware
     index = hardware.joint_index(joint)
     hardware.read()
-    lower, upper, vmax = session.robot.joint(joint).range_and_speed()
-    chirp = safe_chirp(hardware.position[index], lower, upper, vmax, amplitude=amplitude, duration_s=duration_s,
-                       f_start_hz=f_start_hz, f_end_hz=f_end_hz)
-    band = GUARD_FRACTION * (upper - lower) if math.isfinite(upper - lower) else math.inf
-    tripped: list[float] = []
+    lower, upper, _ = session.robot.joint(joint).range_and_speed()
+    rest = hardware.position[index] if start is None else float(start)
+    chirp, allowance, planned_on = plan_identification(
+        session.robot, joint, rest, pose=dict(zip(hardware.joint_names, hardware.position)),
+        loop=loop_settings(session, joint), period_s=session.loop.period_s, gravity_m_s2=session_gravity(session),
+        safety=safety, plant=plant, amplitude=amplitude, duration_s=duration_s, f_start_hz=f_start_hz,
+        f_end_hz=f_end_hz, settle_after_s=SETTLE_AFTER_S)
+    envelope = allowance.envelope
+    guard = Guard(hardware, index, envelope, band=GUARD_FRACTION * (upper - lower)
+                  if math.isfinite(upper - lower) else math.inf)
+    monitor = SaturationMonitor(hardware, index, envelope.effort_limit, envelope.velocity_limit,
+                                safety.saturation_margin)
     started = session.loop.time_s
 
     def excite(time_s: float) -> None:
-        q = hardware.position[index]
-        if not tripped and (q < lower + band or q > upper - band):
-            tripped.append(q)
-        set_reference(chirp.start if tripped else chirp(time_s - started - SETTLE_S))
+        set_reference(guard.reference(time_s, chirp(time_s - started - SETTLE_S)))
 
     session.loop.add_input(excite)
+    watchers = (monitor, guard.observe)  # bound once: removal compares identity
+    for hook in watchers:
+        session.loop.add_observer(hook)
     try:
-        with session:
-            session.run(SETTLE_S + duration_s + SETTLE_AFTER_S)
+        run_guarded(session, SETTLE_S + duration_s + SETTLE_AFTER_S, guard)
     finally:
         session.loop.remove_input(excite)
-    if tripped:
-        raise IdentificationError(f"the joint came within {band:.3g} of a limit of [{lower:g}, {upper:g}]: the "
-                                  "excitation was stopped and the joint returned; give a smaller --amplitude",
-                                  field="position", value=tripped[0])
-    return chirp, lower, upper
+        for hook in watchers:
+            session.loop.remove_observer(hook)
+    if guard.trip is not None:
+        raise guard.error("the excitation")
+    share = monitor.share(started + SETTLE_S - 1e-9, started + SETTLE_S + duration_s - 1e-9)
+    report = {"binds": allowance.binds, "safe_amplitude": allowance.amplitude, "planned_on": planned_on,
+              "predicted": allowance.predicted(chirp.amplitude), "saturation": {**monitor.describe(), **share,
+                                                                                 "threshold": safety.saturation_share}}
+    if share["share"] > safety.saturation_share:
+        raise IdentificationError(
+            f"the actuator saturated: {saturation_text(share, monitor, envelope.unit)} during the excitation, more "
+            f"than {100 * safety.saturation_share:g} %: the effort measured is not the effort that moved the plant, "
+            "so nothing was fitted; give a smaller --amplitude, a lower --f-end-hz, or a --plant closer to the robot",
+            field="saturation", value=round(share["share"], 4))
+    return chirp, lower, upper, report
 
 
-def _finish(fit: PlantFit, joint: str, excitation: tuple[Chirp, float, float], out_dir, t, q, qd, u) -> dict:
-    chirp, lower, upper = excitation
+def loop_settings(session, joint: str) -> tuple[dict | None, str, bool, float | None]:
+    """(gains ``{"p", "i", "d"}``, derivative law, whether its p alone holds gravity (a droop), effort
+    limit) of the position loop that moves ``joint``: the session's JointPositionController, or a served
+    ros_control loop (its gains through dynamic_reconfigure); (None, "error", False, None) when unknown."""
+    controller = session.manager.commanding(joint)
+    if isinstance(controller, JointPositionController):
+        g = controller.pid.gains
+        droops = not g.i and "gravity" not in controller.feedforward_terms
+        return {"p": g.p, "i": g.i, "d": g.d}, controller.derivative, droops, controller.effort_limit
+    hardware = session.hardware
+    served = getattr(hardware, "controllers", None)
+    if isinstance(served, dict) and joint in served and hasattr(hardware, "gains"):
+        name = served[joint][1]
+        parameters = hardware.controller_parameters().get(name, {})
+        gains = hardware.gains(name)
+        feedforward = parameters.get("feedforward", {}) if isinstance(parameters, dict) else {}
+        droops = not gains.get("i") and not (isinstance(feedforward, dict) and feedforward.get("gravity"))
+        return ({k: float(gains.get(k, 0.0)) for k in ("p", "i", "d")}, derivative_law(parameters), droops, None)
+    return None, "error", False, None
+
+
+def _finish(fit: PlantFit, joint: str, excitation: tuple[Chirp, float, float, dict], out_dir, t, q, qd, u) -> dict:
+    chirp, lower, upper, report = excitation
     metrics = _metrics(fit, joint)
     metrics["excitation"] = {"amplitude": chirp.amplitude, "f_start_hz": chirp.f_start_hz,
                              "f_end_hz": chirp.f_end_hz, "duration_s": chirp.duration_s, "start": chirp.start,
                              "position_min": float(q.min()), "position_max": float(q.max()),
                              "rest_before": float(q[t - t[0] <= SETTLE_S][-1]), "rest_after": float(q[-1]),
-                             "lower": lower, "upper": upper}
+                             "lower": lower, "upper": upper, **report}
     if out_dir is not None:
         _write(out_dir, joint, fit, metrics, t, q, qd, u)
     return metrics
