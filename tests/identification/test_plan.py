@@ -1,0 +1,62 @@
+"""--dry-run's plans: made as the run makes them, from the model and the controller file alone."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from jointctl.identification.identify import identify_on_robot
+from jointctl.identification.plan import configured_loop, format_plan, plan_autotune, plan_bode, plan_identify
+from jointctl.identification.safety import Safety, UserLimits
+from jointctl.model import load_robot_model
+from jointctl.scenario.spec import scenario_for_robot
+
+
+def test_the_identify_plan_is_the_runs_plan() -> None:
+    scenario = scenario_for_robot("one_dof", "position")
+    plan = plan_identify(scenario, "joint1", f_end_hz=2.0)
+    _, metrics = identify_on_robot(scenario, "joint1", f_end_hz=2.0)
+    assert metrics["excitation"]["amplitude"] == pytest.approx(plan["excitation"]["amplitude"], rel=1e-12)
+    assert metrics["excitation"]["binds"] == plan["binds"] == "position"
+    # The windowed chirp's swing (its peak near 2 Hz, |T| 1.6) and the droop fill 0.3 of the 0.5 m of room.
+    assert plan["predicted"]["position"]["peak"] == pytest.approx(0.15, rel=1e-9)
+    assert metrics["excitation"]["position_min"] >= -0.5 - 0.15 * 1.01
+
+
+def test_the_plan_reads_the_controller_file_with_its_overrides() -> None:
+    controller = "controllers.joint1_position_controller"
+    scenario = scenario_for_robot("one_dof", "position",
+                                  [f"{controller}.pid.p=800", f"{controller}.derivative=measurement"])
+    robot = load_robot_model(scenario.robot.description)
+    loop = configured_loop(scenario, robot, joint="joint1")
+    assert loop["gains"] == {"p": 800.0, "i": 0.0, "d": 0.0} and loop["derivative"] == "measurement"
+    assert loop["name"] == "joint1_position_controller" and loop["droops"]
+    arm = scenario_for_robot("arm7dof", "position")
+    loop = configured_loop(arm, load_robot_model(arm.robot.description), controller="joint1_position_controller")
+    assert loop["gains"]["d"] == 50.0 and not loop["droops"]  # gravity feed-forward and an integral hold it
+
+
+def test_the_printed_plans_say_where_how_much_how_long_and_what_binds() -> None:
+    scenario = scenario_for_robot("one_dof", "position")
+    safety = Safety(limits=UserLimits(max_effort=40.0, workspace=(-0.8, -0.2)))
+    text = format_plan(plan_identify(scenario, "joint1", safety=safety))
+    for fragment in ("nothing moves", "Joint joint1", "starting at -0.5 m", "Chirp 0.2 to 3 Hz over 10 s",
+                     "13 s with the rests", "window [-0.8, -0.2] m (the workspace)", "limit 40 N (--max-effort)",
+                     "Predicted peaks: swing", "Binding limit:"):
+        assert fragment in text, fragment
+    plan = plan_bode(scenario, "joint1_position_controller", [0.5, 5.0, 20.0], safety=safety)
+    text = format_plan(plan)
+    assert "3 stepped sines" in text and text.count("effort") >= 3
+    assert [row["binds"] for row in plan["rows"]] == ["position", "effort", "effort"]
+    text = format_plan(plan_autotune(scenario, "joint1_position_controller", bandwidth_hz=5.0, step=0.1))
+    assert "Designed gains p 385" in text and "Check step 0.03946 m (asked 0.1)" in text and "Check sweep" in text
+
+
+def test_a_servo_loop_that_is_not_jointctls_is_planned_on_the_reference_alone() -> None:
+    plan = plan_bode(scenario_for_robot("one_dof", "industrial"), None, [1.0, 10.0], joint="joint1")
+    assert plan["planned_on"] is None
+    for row in plan["rows"]:
+        assert math.isnan(row["predicted"]["effort"]["peak"])
+        assert row["amplitude"] == pytest.approx(min(0.15, 50.0 / (2 * math.pi * row["frequency_hz"])))
+    assert "the reference alone" in format_plan(plan)
