@@ -216,7 +216,7 @@ def test_identify_writes_metrics_and_reads_its_own_trace_back(tmp_path):
 
 
 @pytest.mark.parametrize("args, fragments", [
-    (["one_dof", "--joint", "joint1", "--amplitude", "1"], ["amplitude", "at most 0.15", "1.0"]),
+    (["one_dof", "--joint", "joint1", "--amplitude", "1"], ["amplitude", "at most 0.09669", "range binds", "1.0"]),
     (["one_dof", "--joint", "joint7"], ["--joint", "joint7"]),
     (["one_dof", "--joint", "joint1", "--controllers", "velocity"], ["JointPositionController"]),
     (["trace.csv", "--joint", "joint1"], ["--joint-type"]),

@@ -15,6 +15,8 @@
     jointctl bode ROBOT --controller NAME [--out DIR]     a loop's measured frequency response and its model
     jointctl autotune ROBOT --controller NAME --zeta Z --bandwidth-hz F   gains for a spec, as the chapter's YAML
                      (or --overshoot-pct P --settling-s T)
+    identify, bode, autotune: --max-effort N --max-velocity V --workspace LOWER:UPPER --dry-run
+                     (limits planned within and watched: docs/real-robots.md)
 
 Every error a user can cause is printed as one line naming the file, field
 and value, with exit status 2.

@@ -9,7 +9,8 @@ import json
 import sys
 from pathlib import Path
 
-from jointctl.cli.common import SET_VALUES, industrial_hardware, loop_hardware_arguments
+from jointctl.cli.common import (SET_VALUES, industrial_hardware, loop_hardware_arguments, safety_arguments,
+                                 safety_from_args)
 from jointctl.errors import JointCtlError
 from jointctl.recording.metrics_file import metrics_json
 
@@ -34,6 +35,9 @@ def add_parsers(sub) -> None:
     identify.add_argument("--f-start-hz", type=float, default=0.2, help="chirp start frequency (default 0.2 Hz)")
     identify.add_argument("--f-end-hz", type=float, default=3.0, help="chirp end frequency (default 3 Hz)")
     identify.add_argument("--no-friction", action="store_true", help="fit without a Coulomb friction term")
+    identify.add_argument("--plant", type=Path, help="an earlier identification's metrics.json to plan the excitation "
+                                                     "on (default: the robot model)")
+    safety_arguments(identify)
     identify.add_argument("--out", type=Path, default=Path("out/identify"), help="output folder")
 
     bode = sub.add_parser("bode", help="a joint loop's closed-loop frequency response by stepped sines, beside "
@@ -53,6 +57,7 @@ def add_parsers(sub) -> None:
     bode.add_argument("--amplitude", type=float, help="sine amplitude [m, rad, or per s] (default: the safe one)")
     bode.add_argument("--plant", type=Path, help="an identification's metrics.json for the model's plant "
                                                  "(default: the robot model's)")
+    safety_arguments(bode)
     bode.add_argument("--out", type=Path, default=Path("out/bode"), help="output folder")
 
     tune_gains = sub.add_parser("autotune", help="PD/P gains for a damping ratio and a bandwidth, checked on the "
@@ -72,6 +77,7 @@ def add_parsers(sub) -> None:
     tune_gains.add_argument("--step", type=float, default=0.1,
                             help="the largest step [m, rad, or per s] that must not saturate the effort (default 0.1)")
     tune_gains.add_argument("--plant", type=Path, help="an identification's metrics.json (default: the robot model)")
+    safety_arguments(tune_gains)
     tune_gains.add_argument("--out", type=Path, default=Path("out/autotune"), help="output folder")
     identify.set_defaults(handler=_identify)
     bode.set_defaults(handler=_bode)
@@ -83,7 +89,10 @@ def _identify(args: argparse.Namespace) -> int:
     from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
 
     friction = not args.no_friction
+    safety = safety_from_args(args)
     if args.target.endswith((".csv", ".bag")):
+        if args.dry_run:
+            raise JointCtlError("plans an excitation; a recorded trace or bag has none", field="--dry-run")
         joint_type = args.joint_type or _joint_type(args.robot, args.joint)
         if args.target.endswith(".csv"):
             _, metrics = identify_trace(args.target, args.joint, joint_type, out_dir=args.out, fit_friction=friction)
@@ -98,19 +107,27 @@ def _identify(args: argparse.Namespace) -> int:
                             "JOINT_FEEDBACK carry none) and servos the joint itself: there is no plant to fit; "
                             "measure its loop with jointctl bode --hardware industrial", field="--hardware",
                             value="industrial")
-    elif args.hardware == "ros":
+    elif args.hardware == "ros" and not args.dry_run:
         from jointctl.identification.identify import identify_servoed
 
+        plant = _plant_file(args.plant)
         with _served(args, joint=args.joint) as (session, _):
             _, metrics = identify_servoed(session, args.joint, out_dir=args.out, amplitude=args.amplitude,
                                           duration_s=args.duration_s, f_start_hz=args.f_start_hz,
-                                          f_end_hz=args.f_end_hz, fit_friction=friction)
+                                          f_end_hz=args.f_end_hz, fit_friction=friction, safety=safety, plant=plant)
     else:
         scenario = (scenario_for_robot(args.target, args.controllers, args.overrides)
                     if args.target in builtin_robots() else load_scenario(args.target, args.overrides))
+        if args.dry_run:
+            from jointctl.identification.plan import plan_identify
+
+            return _print_plan(plan_identify(scenario, args.joint, amplitude=args.amplitude, duration_s=args.duration_s,
+                                             f_start_hz=args.f_start_hz, f_end_hz=args.f_end_hz, safety=safety,
+                                             plant=_plant_file(args.plant)))
         _, metrics = identify_on_robot(scenario, args.joint, out_dir=args.out, amplitude=args.amplitude,
                                        duration_s=args.duration_s, f_start_hz=args.f_start_hz,
-                                       f_end_hz=args.f_end_hz, fit_friction=friction)
+                                       f_end_hz=args.f_end_hz, fit_friction=friction, safety=safety,
+                                       plant=_plant_file(args.plant))
     print(metrics_json(metrics))
     print(f"wrote {args.out}/", file=sys.stderr)
     return 0
@@ -158,24 +175,58 @@ def _bode(args: argparse.Namespace) -> int:
     if not 2 <= args.points <= 200:
         raise JointCtlError("must be 2 to 200", field="--points", value=args.points)
     frequencies = np.logspace(np.log10(args.f_min_hz), np.log10(args.f_max_hz), args.points)
+    safety = safety_from_args(args)
+    if args.dry_run:
+        return _print_plan(_bode_plan(args, frequencies, safety))
     if args.hardware == "industrial":
-        result = _bode_industrial(args, frequencies)
+        result = _bode_industrial(args, frequencies, safety)
     elif args.hardware == "ros":
-        result = _bode_served(args, frequencies)
+        result = _bode_served(args, frequencies, safety)
     else:
         if not args.controller:
             raise JointCtlError("is required (the loop to sweep)", field="--controller")
         result = bode(_loop_scenario(args), args.controller, frequencies, plant=_plant_file(args.plant),
-                      amplitude=args.amplitude, out_dir=args.out)
+                      amplitude=args.amplitude, out_dir=args.out, safety=safety)
     shown = {k: v for k, v in result.items() if not isinstance(v, (list, dict))}
     if "model" in result:
         shown["model"] = {k: v for k, v in result["model"].items() if not isinstance(v, list)}
     print(metrics_json(shown))
+    saturated = result.get("saturated_hz") or []
+    if saturated:
+        print(f"jointctl: warning: the actuator saturated at {', '.join(f'{f:.3g}' for f in saturated)} Hz: those "
+              "points are marked and left out of the bandwidth and resonance", file=sys.stderr)
     print(f"wrote {args.out}/", file=sys.stderr)
     return 0
 
 
-def _bode_industrial(args: argparse.Namespace, frequencies) -> dict:
+def _bode_plan(args: argparse.Namespace, frequencies, safety) -> dict:
+    """``bode --dry-run``'s plan: the loop's scenario (a servo loop's joint with --hardware industrial)."""
+    from jointctl.identification.plan import plan_bode
+    from jointctl.scenario.spec import builtin_robots, scenario_for_robot
+
+    plant = _plant_file(args.plant)
+    if args.hardware == "industrial":
+        if not args.joint:
+            raise JointCtlError("is required with --hardware industrial", field="--joint")
+        if args.target not in builtin_robots():
+            raise JointCtlError("--hardware industrial needs a built-in robot", field="target", value=args.target)
+        scenario = scenario_for_robot(args.target, "industrial", args.overrides)
+        return plan_bode(scenario, None, frequencies, joint=args.joint, amplitude=args.amplitude, safety=safety)
+    if not args.controller:
+        raise JointCtlError("is required (the loop to sweep)", field="--controller")
+    return plan_bode(_loop_scenario(args), args.controller, frequencies, amplitude=args.amplitude, plant=plant,
+                     safety=safety)
+
+
+def _print_plan(plan: dict) -> int:
+    """Print a dry run's plan; nothing moved."""
+    from jointctl.identification.plan import format_plan
+
+    print(format_plan(plan))
+    return 0
+
+
+def _bode_industrial(args: argparse.Namespace, frequencies, safety=None) -> dict:
     """``bode --hardware industrial``: the controller's own position loop, measured over the socket in
     real time (no model: its servos are the controller's)."""
     from jointctl.identification.frequency_response import analyse, measure_servoed, write_bode
@@ -190,7 +241,7 @@ def _bode_industrial(args: argparse.Namespace, frequencies) -> dict:
     hardware = industrial_hardware(args, scenario)
     try:
         session = Session(scenario, hardware=hardware, realtime=True)
-        points, context = measure_servoed(session, args.joint, frequencies, amplitude=args.amplitude)
+        points, context = measure_servoed(session, args.joint, frequencies, amplitude=args.amplitude, safety=safety)
     finally:
         hardware.close()
     result = analyse(points, None)
@@ -200,7 +251,7 @@ def _bode_industrial(args: argparse.Namespace, frequencies) -> dict:
     return result
 
 
-def _bode_served(args: argparse.Namespace, frequencies) -> dict:
+def _bode_served(args: argparse.Namespace, frequencies, safety=None) -> dict:
     """``bode --hardware ros``: the served node's loop through its command topic and joint states, in
     real time, beside the model with the gains its dynamic_reconfigure server holds."""
     from jointctl.control.joint_controllers import derivative_law
@@ -212,10 +263,13 @@ def _bode_served(args: argparse.Namespace, frequencies) -> dict:
     with _served(args, controller=args.controller) as (session, name):
         hardware = session.hardware
         joint = hardware.joint_of(name)
-        points, context = measure_servoed(session, joint, frequencies, amplitude=args.amplitude)
-        context["gains"] = hardware.gains(name)
+        gains = hardware.gains(name)
         # The law the served controller runs: its parameters' ``derivative``, else ros_controllers' (error).
-        context["derivative"] = derivative_law(hardware.controller_parameters().get(name, {}))
+        law = derivative_law(hardware.controller_parameters().get(name, {}))
+        points, context = measure_servoed(session, joint, frequencies, amplitude=args.amplitude, gains=gains,
+                                          derivative=law, plant=plant, safety=safety)
+        context["gains"] = gains
+        context["derivative"] = law
         pose = dict(zip(hardware.joint_names, hardware.position))
         pose[joint] = context["rest"]
         return compare(points, context, f"/{hardware.namespace}/{name}", plant, session.robot, pose,
@@ -271,17 +325,25 @@ def _autotune(args: argparse.Namespace) -> int:
                             value="industrial")
     zeta, bandwidth_hz, settling_s = _autotune_spec(args)
     plant = _plant_file(args.plant)
+    safety = safety_from_args(args)
+    if args.dry_run:
+        from jointctl.identification.plan import plan_autotune
+
+        return _print_plan(plan_autotune(_loop_scenario(args), args.controller, bandwidth_hz=bandwidth_hz, zeta=zeta,
+                                         step=args.step, plant=plant, safety=safety, settling_s=settling_s))
     if args.hardware == "ros":
         from jointctl.identification.autotune import autotune_servoed
 
         with _served(args, controller=args.controller) as (session, name):
             result = autotune_servoed(session, name, bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step,
-                                      plant=plant, out_dir=args.out, settling_s=settling_s)
+                                      plant=plant, out_dir=args.out, settling_s=settling_s, safety=safety)
     else:
         result = autotune(lambda overrides: _loop_scenario(args, overrides), args.controller,
                           bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step, plant=plant, out_dir=args.out,
-                          settling_s=settling_s)
+                          settling_s=settling_s, safety=safety)
     print(metrics_json(result))
+    for warning in result.get("warnings") or []:
+        print(f"jointctl: warning: {warning}", file=sys.stderr)
     print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0
 

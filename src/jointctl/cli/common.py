@@ -38,6 +38,31 @@ def loop_hardware_arguments(parser: argparse.ArgumentParser) -> None:
     industrial_arguments(parser)
 
 
+def safety_arguments(parser: argparse.ArgumentParser) -> None:
+    """The excited joint's limits the user sets, and the dry run, of identify, bode and autotune
+    (see docs/real-robots.md)."""
+    parser.add_argument("--max-effort", type=float, metavar="N",
+                        help="the excited joint's largest effort [N or N·m]: the excitation is planned well inside "
+                             "it, and the run stops (the joint brought back) if the measured effort crosses it")
+    parser.add_argument("--max-velocity", type=float, metavar="V",
+                        help="the excited joint's largest speed [m/s or rad/s], planned within and watched alike")
+    parser.add_argument("--workspace", metavar="LOWER:UPPER",
+                        help="the excited joint's positions [m or rad] the run must stay in, planned within and "
+                             "watched alike (write --workspace=-0.6:-0.4 when LOWER is negative)")
+    parser.add_argument("--dry-run", action="store_true",
+                        help="print the planned excitation (amplitudes, predicted peaks against each limit, the "
+                             "binding limit) and exit without moving anything")
+
+
+def safety_from_args(args: argparse.Namespace):
+    """The :class:`~jointctl.identification.safety.Safety` of :func:`safety_arguments`' flags;
+    JointCtlError naming the flag when one is malformed."""
+    from jointctl.identification.safety import Safety, UserLimits, parse_workspace
+
+    workspace = parse_workspace(args.workspace) if args.workspace is not None else None
+    return Safety(limits=UserLimits(max_effort=args.max_effort, max_velocity=args.max_velocity, workspace=workspace))
+
+
 def industrial_arguments(parser: argparse.ArgumentParser) -> None:
     """How to reach an industrial controller (serve and bode with --hardware industrial)."""
     parser.add_argument("--robot-ip", help="with --hardware industrial: the robot controller's host name or IPv4 address")
