@@ -1,0 +1,202 @@
+"""Safe excitation: amplitudes planned inside the limits on the loop model, saturation measured and acted on,
+the user's limits watched (the joint brought back when the measured motion crosses one).
+
+Theory for the 1-DOF piston (m 1.01 kg, b 10 N·s/m, p 400 N/m, no d): a reference sine of amplitude A at ω
+moves it by A·|T|, T = p/(m s² + b s + p), and asks A·|p·(m s² + b s)/(m s² + b s + p)| on top of its weight
+m·g = 9.908 N (which a P loop holds by a droop m·g/p = 24.77 mm). Those are the continuous loop's; the planned
+ones are the 1 kHz sampled loop's, which differ by less than 2 % (near the resonance, 3.17 Hz): the tolerance
+below. A copy of the piston damped by 2 N·s/m instead of 10 (ζ 0.05: |T| = 1/(2ζ) = 10 at resonance) planned on
+a plant file that says 40 N·s/m (ζ 0.995: |T| = 0.5, and an effort |1 - T|·p ≈ 1.1·p instead of 10·p) swings
+and pushes about ten times more than planned near 3.17 Hz: more than the 2x margins absorb.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from jointctl.errors import JointCtlError
+from jointctl.identification.frequency_response import bode, measure, measure_in_session
+from jointctl.identification.identify import identify_on_robot
+from jointctl.identification.plan import plan_bode
+from jointctl.identification.plant_fit import IdentificationError
+from jointctl.identification.safety import Safety, SafetyStop, UserLimits, parse_workspace
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import scenario_for_robot
+from tests.identification.variants import DAMPING, G, KP, MASS_KG, one_dof_variant, plant
+
+CONTROLLER = "joint1_position_controller"
+SAMPLED = 0.03  # the 1 kHz hold moves |T| and the effort by less than 2 % from the continuous loop's
+WEIGHT = MASS_KG * G
+DROOP = WEIGHT / KP
+
+
+def continuous(frequency_hz: float, damping: float = DAMPING) -> tuple[float, float]:
+    """(|T|, effort per unit amplitude [N/m]) of the continuous P loop on the piston at ``frequency_hz``."""
+    s = 2j * math.pi * frequency_hz
+    plant_ = MASS_KG * s * s + damping * s
+    return abs(KP / (plant_ + KP)), abs(KP * plant_ / (plant_ + KP))
+
+
+@pytest.mark.parametrize(("flags", "field"), [
+    (dict(max_effort=-5.0), "--max-effort"), (dict(max_effort=0.0), "--max-effort"),
+    (dict(max_velocity=math.nan), "--max-velocity"), (dict(max_velocity=math.inf), "--max-velocity"),
+    (dict(workspace=(1.0, 0.0)), "--workspace"), (dict(workspace=(0.0, 0.0)), "--workspace"),
+])
+def test_malformed_user_limits_are_refused_naming_the_flag(flags, field) -> None:
+    with pytest.raises(JointCtlError) as info:
+        UserLimits(**flags)
+    assert info.value.field == field
+
+
+@pytest.mark.parametrize("text", ["1:0", "abc", "0.5", "-0.6:x", ":", "nan:1"])
+def test_a_workspace_must_be_lower_colon_upper(text) -> None:
+    with pytest.raises(JointCtlError) as info:
+        parse_workspace(text)
+    assert info.value.field == "--workspace"
+    assert parse_workspace("-0.6:-0.4") == (-0.6, -0.4)
+
+
+def test_fractions_outside_zero_to_one_are_refused() -> None:
+    with pytest.raises(JointCtlError) as info:
+        Safety(effort_fraction=1.5)
+    assert info.value.field == "effort_fraction"
+
+
+def test_the_planned_sines_keep_the_loops_effort_within_half_of_max_effort() -> None:
+    """The rule against the model: with --max-effort 40 N, each sine's effort (theory) plus the weight is at
+    most half of 40 N, and where the effort binds the safe amplitude is the one that makes it half of 40 N;
+    its swing, droop included, at most 0.3 of the 0.5 m of room; and above the resonance the amplitude
+    shrinks as the effort grows. The timetable simulated on the model (each change of frequency included)
+    peaks at the budget, never above: a sine after the resonance is made smaller than its steady state
+    allows (by up to a sixth here) for the ringing the change leaves."""
+    frequencies = np.logspace(math.log10(0.5), math.log10(20.0), 20)
+    plan = plan_bode(scenario_for_robot("one_dof", "position"), CONTROLLER, frequencies,
+                     safety=Safety(limits=UserLimits(max_effort=40.0)))
+    budget = 0.5 * 40.0
+    binding = []
+    for row in plan["rows"]:
+        t, effort = continuous(row["frequency_hz"])
+        a = row["amplitude"]
+        assert a * effort + WEIGHT <= budget * (1 + SAMPLED)
+        assert a * max(1.0, t) + DROOP <= 0.3 * 0.5 * (1 + SAMPLED)
+        assert row["predicted"]["effort"]["peak"] <= budget * (1 + 1e-9)  # the model's own prediction
+        assert a <= row["safe_amplitude"]
+        if row["binds"] == "effort":
+            binding.append(row["frequency_hz"])
+            assert row["safe_amplitude"] * effort + WEIGHT == pytest.approx(budget, rel=SAMPLED)
+            assert row["predicted"]["effort"]["peak"] == pytest.approx(budget, rel=0.02)
+    assert len(binding) >= 10 and min(binding) < 3.0 < max(binding)
+    amplitudes = {row["frequency_hz"]: row["amplitude"] for row in plan["rows"]}
+    assert amplitudes[frequencies[-1]] < 0.25 * amplitudes[frequencies[0]]
+
+
+def test_a_plan_without_a_user_limit_is_bound_by_the_range_where_the_loop_is_gentle() -> None:
+    """No --max-effort: the piston's 1000 N leaves the position budget binding: (0.15 m - droop)/max(1, |T|)."""
+    plan = plan_bode(scenario_for_robot("one_dof", "position"), CONTROLLER, [0.5, 20.0])
+    for row in plan["rows"]:
+        t, _ = continuous(row["frequency_hz"])
+        assert row["binds"] == "position"
+        assert row["safe_amplitude"] == pytest.approx((0.15 - DROOP) / max(1.0, t), rel=SAMPLED)
+
+
+def test_the_robot_swept_inside_the_plan_stays_inside_the_effort_budget_and_does_not_saturate() -> None:
+    frequencies = [0.5, 1.0, 2.0, 3.17, 5.0, 10.0, 20.0]
+    points, context = measure(scenario_for_robot("one_dof", "position"), CONTROLLER, frequencies,
+                              safety=Safety(limits=UserLimits(max_effort=40.0)))
+    peaks = context["saturation"]["peak_effort"]
+    # MuJoCo's robot against the sampled model: within 1 %; the budget is half of 40 N.
+    assert max(peaks) <= 20.0 * 1.01
+    assert max(peaks) >= 0.9 * 20.0  # and the budget is used, not wasted
+    assert all(p.saturation == 0.0 and not p.saturated for p in points)
+    assert context["plan"]["effort_limit"] == 40.0
+
+
+def test_the_arm_swept_with_its_own_limits_stays_inside_them() -> None:
+    """The arm's joint 5 (100 N·m, 0.5 rad/s): at the old amplitude (a third of the 3 rad of room, 1 rad) its
+    sweep sat at a limit in 64 to 100 % of the cycles. Planned on its model (the other joints held: the
+    coupling makes it lighter at high frequencies than its M55, so it moves up to 15 % faster than
+    predicted), its peaks stay within the limits, the 2x margin taking the model's error."""
+    points, context = measure(scenario_for_robot("arm7dof", "position"), "joint5_position_controller",
+                              [0.5, 2.0, 8.0, 20.0])
+    assert max(context["saturation"]["peak_effort"]) <= 100.0
+    assert max(context["saturation"]["peak_velocity"]) <= 0.5
+    assert all(p.saturation == 0.0 for p in points)
+    assert [row["binds"] for row in context["plan"]["points"]] == ["velocity"] * 4
+
+
+def test_a_loop_that_resonates_more_than_its_plant_says_saturates_and_bode_marks_the_point(tmp_path) -> None:
+    scenario = one_dof_variant(tmp_path, damping=2.0, effort=40.0)
+    result = bode(scenario, CONTROLLER, [0.5, 1.0, 3.17, 10.0], plant=plant(damping=40.0), out_dir=tmp_path / "out")
+    shares = dict(zip(result["frequencies_hz"], result["saturation_share"]))
+    assert shares[3.17] > 0.01 and result["saturated"][2]
+    assert shares[0.5] == shares[1.0] == 0.0 and not result["saturated"][0]
+    assert 3.17 in result["saturated_hz"] and 1.0 not in result["saturated_hz"]  # (10 Hz takes the ringing over)
+    assert (tmp_path / "out" / "bode.png").stat().st_size > 10_000
+    import json
+
+    written = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert written["saturated"] == result["saturated"] and written["amplitudes"] == pytest.approx(result["amplitudes"])
+
+
+def test_identify_refuses_to_fit_a_saturated_excitation(tmp_path) -> None:
+    scenario = one_dof_variant(tmp_path, damping=2.0, effort=40.0)
+    with pytest.raises(IdentificationError) as info:
+        identify_on_robot(scenario, "joint1", plant=plant(damping=40.0), f_start_hz=2.5, f_end_hz=3.5)
+    assert info.value.field == "saturation" and info.value.value > 0.01
+    assert "of the cycles at the effort limit 40 N" in str(info.value)
+
+
+def test_identify_planned_on_the_right_plant_does_not_saturate_and_fits(tmp_path) -> None:
+    """The piston with a 40 N limit: the chirp's effort is planned to half of it and measured there."""
+    _, metrics = identify_on_robot(one_dof_variant(tmp_path, effort=40.0), "joint1")
+    excitation = metrics["excitation"]
+    assert excitation["saturation"]["share"] == 0.0 and excitation["binds"] == "effort"
+    assert excitation["predicted"]["effort"]["peak"] == pytest.approx(20.0, rel=1e-9)
+    assert excitation["saturation"]["peak_effort"] <= 20.0 * 1.01
+    assert metrics["mass_kg"] == pytest.approx(MASS_KG + 0.001 * DAMPING, rel=2e-3)
+
+
+def test_crossing_the_workspace_stops_the_sweep_and_brings_the_joint_back(tmp_path) -> None:
+    scenario = one_dof_variant(tmp_path, damping=2.0)
+    session = Session(scenario)
+    positions: list[float] = []
+    session.loop.add_observer(lambda t: positions.append(session.hardware.position[0]))
+    hooks = (session.loop.inputs, session.loop.observers)
+    with pytest.raises(SafetyStop) as info:
+        measure_in_session(session, CONTROLLER, [0.5, 3.17], plant=plant(damping=40.0),
+                           safety=Safety(limits=UserLimits(workspace=(-0.7, -0.3))))
+    stop = info.value
+    assert stop.field == "--workspace" and stop.value == pytest.approx(-0.7, abs=2e-3)
+    assert f"at t = {stop.time_s:.3f} s" in str(stop) and "at rest" in str(stop)
+    # The 3.17 Hz sine starts after 0.5 s of rest and the 0.5 Hz sine's 12 s (two settling periods, four
+    # measured); it crosses while it settles (1.5 s, five whole periods).
+    assert 12.5 < stop.time_s < 12.5 + 5 / 3.17
+    controller = session.manager.controller(CONTROLLER)
+    assert controller.reference == -0.5  # the reference ramped back to where it was
+    assert session.hardware.position[0] == pytest.approx(-0.5 - DROOP, abs=1e-3)  # at rest there, drooping
+    assert abs(session.hardware.velocity[0]) <= 0.01 * 0.2  # the guard's "at rest": 1 % of the room a second
+    assert -1.0 < min(positions) and max(positions) < 0.0  # never beyond the joint's range
+    assert (session.loop.inputs, session.loop.observers) == hooks  # the sweep's hooks are gone
+
+
+def test_crossing_max_velocity_stops_identify(tmp_path) -> None:
+    scenario = one_dof_variant(tmp_path, damping=2.0)
+    # Planned on ζ 0.5 (|T| 1.15 at most); the robot's ζ 0.05 at 3.17 Hz moves ten times faster.
+    with pytest.raises(SafetyStop) as info:
+        identify_on_robot(scenario, "joint1", plant=plant(damping=20.0), f_start_hz=3.17, f_end_hz=3.17,
+                          safety=Safety(limits=UserLimits(max_velocity=0.2)))
+    assert info.value.field == "--max-velocity" and abs(info.value.value) > 0.2
+    assert "the joint's speed reached" in str(info.value)
+
+
+def test_an_amplitude_beyond_the_safe_one_names_the_binding_limit() -> None:
+    scenario = scenario_for_robot("one_dof", "position")
+    with pytest.raises(IdentificationError) as info:
+        bode(scenario, CONTROLLER, [1.0, 20.0], amplitude=0.1, safety=Safety(limits=UserLimits(max_effort=40.0)))
+    assert info.value.field == "amplitude" and "--max-effort binds" in str(info.value)
+    _, effort = continuous(20.0)
+    named = float(str(info.value).split("at most ")[1].split()[0])
+    assert named == pytest.approx((20.0 - WEIGHT) / effort, rel=SAMPLED) and "at 20 Hz" in str(info.value)
