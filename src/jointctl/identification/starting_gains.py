@@ -126,7 +126,7 @@ def _joint_loop(joint, joint_type, home, inertia, damping, gravity, limit, step,
                           "check the masses and the gravity direction)", field=f"joint {joint}", value=home)
     p_effort = (allowed - gravity) / step  # the most p a step may ask
     p_sag = gravity / (SAG_FRACTION * step)  # the least p that holds the load within the sag allowed
-    p_low, p_high = min(p_sag, p_effort), p_effort
+    p_low, p_high = min(p_sag, 0.9 * p_effort), p_effort
     asked = bandwidth_hz
     for _ in range(12):
         try:
