@@ -7,11 +7,12 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 import yaml
 
 from jointctl.errors import ConfigError
-from jointctl.identification.identify import identify_on_robot, identify_trace
+from jointctl.identification.identify import identify_on_robot, identify_states, identify_trace
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.model import load_robot_model
 from jointctl.model.dynamics import RobotDynamics
@@ -62,6 +63,29 @@ def test_the_recorded_trace_identifies_the_same_joint(one_dof) -> None:
     again, metrics = identify_trace(out / "trace.csv", "joint1", "prismatic")
     assert again.inertia == pytest.approx(fit.inertia, rel=1e-6)
     assert again.gravity_load == pytest.approx(fit.gravity_load, rel=1e-6)
+
+
+def test_joint_states_with_lost_stretches_are_identified_and_the_cuts_reported(tmp_path) -> None:
+    # States of every cycle (1 kHz) of a joint 1 kg, 10 N·s/m, 0.5 N friction, 9.81 N load, stamped a
+    # little off the period, of which 10 ms at t = 3 s and 50 ms at t = 6.7 s were lost.
+    t = np.arange(0.0, 10.0, DT)
+    q = 0.3 * np.sin(2 * np.pi * 0.7 * t) + 0.1 * np.sin(2 * np.pi * 2.3 * t + 0.4)
+    qd = np.gradient(q, DT)
+    u = np.append(np.diff(qd) / DT, 0.0) + 10.0 * qd + 0.5 * np.sign(qd) + 9.81
+    lost = ((t >= 3.0) & (t < 3.01)) | ((t >= 6.7) & (t < 6.75))
+    stamps = t + np.where(np.arange(t.size) % 5 == 0, 1e-6, 0.0)  # jitter: 0.1 % of a period
+    fit, metrics = identify_states(stamps[~lost], q[~lost], qd[~lost], u[~lost], "joint1", "prismatic",
+                                   source="test", out_dir=tmp_path)
+    data = metrics["data"]
+    assert data["samples_received"] == t.size - 60 and data["samples_given"] == t.size - 60
+    assert [g["at_s"] for g in data["gaps_cut"]] == pytest.approx([2.999, 6.699], abs=2e-6)
+    assert [g["length_s"] for g in data["gaps_cut"]] == pytest.approx([0.011, 0.051], abs=2e-6)
+    assert data["span_s"] == pytest.approx(10.0) and data["share_used"] == pytest.approx(0.994, abs=1e-6)
+    assert fit.acceleration == "forward"
+    # no difference spans a gap: the fit is the joint's (the jitter's interpolation error aside)
+    assert metrics["mass_kg"] == pytest.approx(1.0, rel=1e-3)
+    assert metrics["damping_n_s_m"] == pytest.approx(10.0, rel=1e-3)
+    assert json.loads((tmp_path / "metrics.json").read_text())["data"]["gaps_cut"] == data["gaps_cut"]
 
 
 def test_a_coulomb_friction_added_to_the_robot_is_recovered(tmp_path) -> None:
