@@ -28,6 +28,15 @@ The fit reports what it used (``samples_given``, ``samples``, ``gaps`` with thei
 ``usable_s`` of ``span_s``) and refuses only when fewer than ``MIN_SAMPLES`` rows are left, saying
 how much time was usable.
 
+A joint of a chain: the other joints' motion loads the joint through the inertia matrix (their
+accelerations, the Coriolis and centrifugal products of their speeds) and shifts its gravity. A
+caller that knows that load (:mod:`jointctl.identification.coupling`, from the robot's model) gives it
+as ``coupling_torque``, subtracted from the effort before the fit, and gives
+``inertia_scale = M_ii(q) / M_ii(q̄)`` when the joint's own inertia changes with the others' pose:
+the inertia column becomes ``inertia_scale · qdd`` and ``inertia`` is the joint's inertia at the pose
+``q̄``, ``gravity(q)`` the joint's gravity load with the others at ``q̄`` (``coupling`` in the result
+says "model"; ``coupling_rms`` the load's RMS over the fitted rows).
+
 A simulated joint integrated with implicit damping (MuJoCo's Euler) shows an inertia larger by
 ``dt·damping`` (0.01 kg for the 1-DOF robot at 1 kHz: 1 %); the fit reports what the joint does.
 """
@@ -71,7 +80,9 @@ class PlantFit:
     stretch); ``effort_shift_cycles`` the effort's alignment kept; ``acceleration`` the differences used
     ("forward" or "central"). The data: ``samples_given`` samples in the fit's input, ``span_s`` [s] the
     time they span, ``usable_s`` [s] the time of the stretches left after cutting ``gaps`` (each
-    ``(at_s, length_s)``: the time of the last sample before it and the step across it [s])."""
+    ``(at_s, length_s)``: the time of the last sample before it and the step across it [s]). The chain:
+    ``coupling`` "model" when the other joints' load was subtracted (see the module docstring), "none"
+    when not; ``coupling_rms`` [N or N·m] that load's RMS over the fitted rows."""
 
     joint_type: str
     inertia: float
@@ -93,6 +104,8 @@ class PlantFit:
     span_s: float = 0.0
     usable_s: float = 0.0
     gaps: tuple[tuple[float, float], ...] = ()
+    coupling: str = "none"
+    coupling_rms: float = 0.0
 
     @property
     def share_used(self) -> float:
@@ -232,12 +245,16 @@ def accelerations(qd: np.ndarray, dt: float, shift: int, acceleration: str) -> t
 
 def fit_plant(time_s: ArrayLike, position: ArrayLike, velocity: ArrayLike, effort: ArrayLike, *,
               joint_type: str, max_shift_cycles: int = 2, fit_friction: bool = True,
-              acceleration: str = "forward") -> PlantFit:
+              acceleration: str = "forward", coupling_torque: ArrayLike | None = None,
+              inertia_scale: ArrayLike | None = None) -> PlantFit:
     """Fit the joint model of the module docstring to ``time_s`` [s], ``position``, ``velocity`` and
     ``effort`` sampled at a uniform period, with gaps cut out (see the module docstring).
     ``joint_type``: ``"prismatic"``, ``"revolute"`` or ``"continuous"``; ``acceleration``:
-    ``"forward"`` or ``"central"`` differences. Raises :class:`IdentificationError` when the data
-    cannot identify it."""
+    ``"forward"`` or ``"central"`` differences. ``coupling_torque`` [N or N·m] (the other joints' load
+    on this one, per sample, computed with the same differences; NaN where undefined) and
+    ``inertia_scale`` (``M_ii(q) / M_ii(q̄)`` per sample) come from
+    :mod:`jointctl.identification.coupling`. Raises :class:`IdentificationError` when the data cannot
+    identify it."""
     if joint_type not in ("prismatic", "revolute", "continuous"):
         raise IdentificationError("must be prismatic, revolute or continuous", field="joint_type", value=joint_type)
     if acceleration not in ("forward", "central"):
@@ -251,6 +268,8 @@ def fit_plant(time_s: ArrayLike, position: ArrayLike, velocity: ArrayLike, effor
                                   value=int(t.size))
     if not all(np.isfinite(x).all() for x in (t, q, qd, u)):
         raise IdentificationError("the trace holds non-finite values", field="samples", value="nan/inf")
+    coupling = _per_sample(coupling_torque, t.size, "coupling_torque")
+    scale = _per_sample(inertia_scale, t.size, "inertia_scale")
     split = stretches(t)
     rows, _ = difference_rows(split.index, qd, split.dt, 0, acceleration)
     if rows.size < MIN_SAMPLES:
@@ -267,21 +286,34 @@ def fit_plant(time_s: ArrayLike, position: ArrayLike, velocity: ArrayLike, effor
                                   field="velocity", value=peak)
     best = None
     for shift in range(max_shift_cycles + 1):
-        fit = _fit_with_shift(q, qd, u, split, shift, joint_type, peak, fit_friction, acceleration)
+        fit = _fit_with_shift(q, qd, u, split, shift, joint_type, peak, fit_friction, acceleration, coupling,
+                              scale)
         if best is None or fit.residual_rms < best.residual_rms:
             best = fit
     return best
 
 
-def _fit_with_shift(q, qd, u, split: Stretches, shift, joint_type, peak, fit_friction, acceleration) -> PlantFit:
+def _per_sample(values, n: int, name: str) -> np.ndarray | None:
+    if values is None:
+        return None
+    a = np.asarray(values, dtype=float)
+    if a.shape != (n,):
+        raise IdentificationError(f"must hold one value per sample ({n})", field=name, value=list(a.shape))
+    return a
+
+
+def _fit_with_shift(q, qd, u, split: Stretches, shift, joint_type, peak, fit_friction, acceleration,
+                    coupling, scale) -> PlantFit:
     rows, qdd = difference_rows(split.index, qd, split.dt, shift, acceleration)
     q0, qd0, u0 = q[rows], qd[rows], u[rows + shift]
-    moving = np.abs(qd0) > MOVING_FRACTION * peak
+    load = np.zeros(rows.size) if coupling is None else coupling[rows]
+    inertia_column = qdd if scale is None else scale[rows] * qdd
+    moving = (np.abs(qd0) > MOVING_FRACTION * peak) & np.isfinite(load) & np.isfinite(inertia_column)
     if moving.sum() < MIN_MOVING:
         left = f" ({split.describe()})" if split.gaps else ""
         raise IdentificationError(f"too few samples where the joint moves{left}", field="velocity",
                                   value=int(moving.sum()))
-    columns = [qdd, qd0]
+    columns = [inertia_column, qd0]
     names = ["inertia", "damping"]
     if fit_friction:
         columns.append(np.sign(qd0))
@@ -293,7 +325,7 @@ def _fit_with_shift(q, qd, u, split: Stretches, shift, joint_type, peak, fit_fri
         columns += [np.sin(q0), np.cos(q0)]
         names += ["gravity_sin", "gravity_cos"]
     a = np.column_stack(columns)[moving]
-    b = u0[moving]
+    b = (u0 - load)[moving]
     norm = np.linalg.norm(a, axis=0)
     if np.any(norm == 0) or np.linalg.cond(a / norm) > 1e8:
         raise IdentificationError("the motion does not separate inertia, damping, friction and gravity "
@@ -319,6 +351,8 @@ def _fit_with_shift(q, qd, u, split: Stretches, shift, joint_type, peak, fit_fri
         r_squared=1.0 - float(residual @ residual) / total if total > 0 else 1.0,
         samples=int(len(b)), effort_shift_cycles=shift, acceleration=acceleration,
         samples_given=int(q.size), span_s=split.span_s, usable_s=split.usable_s, gaps=split.gaps,
+        coupling="none" if coupling is None else "model",
+        coupling_rms=0.0 if coupling is None else float(np.sqrt(np.mean(load[moving] ** 2))),
     )
 
 
