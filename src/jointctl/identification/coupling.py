@@ -31,10 +31,12 @@ inertia is then the joint's at ``q̄``, whatever the model's scale. (On a simula
 scales too: off by ``dt·b_i·(1 - ratio)``, 1e-8 of the 7-DOF arm's joint 1 at its pre-pose.)
 
 What rests on the model: the off-diagonal inertia, the speed products and the gravity shift come
-from the robot's description, not from the data. The coupling is small next to the effort of the
-joint's own motion, so a model off by some per cent moves the fit by that share of the coupling
-(``coupling_rms`` in the result says how large that share can be); the joint's own inertia,
-damping, friction and gravity are still measured, not assumed.
+from the robot's description, not from the data. A model off by some per cent moves the fit by
+that share of the error the coupling removes (a coupling 10 % off moves the planar arm's elbow
+inertia by 0.94 % and its damping by 0.67 %, a tenth of the 10 % and 5 % without it), and the 95 %
+intervals, which count the residual's scatter, do not include it; ``coupling_rms`` in the result
+says how large the load was. The joint's own inertia, damping, friction and gravity are measured,
+not assumed.
 """
 
 from __future__ import annotations
