@@ -38,8 +38,8 @@ from jointctl.errors import ConfigError
 from jointctl.identification.coupling import Coupling, chain_coupling
 from jointctl.identification.excitation import Chirp, safe_chirp
 from jointctl.identification.frequency_response import servo_reference
-from jointctl.identification.plant_fit import (IdentificationError, PlantFit, difference_rows, fit_plant,
-                                               resample_uniform, stretches)
+from jointctl.identification.plant_fit import (MIN_SAMPLES, IdentificationError, PlantFit, difference_rows,
+                                               fit_plant, resample_uniform, stretches)
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
 from jointctl.recording.figures import plot_series
@@ -113,10 +113,22 @@ def identify_servoed(session: Session, joint: str, *, out_dir: str | Path | None
     hardware.start_recording()
     excitation = _excite(session, joint, set_reference, amplitude=amplitude, duration_s=duration_s,
                          f_start_hz=f_start_hz, f_end_hz=f_end_hz)
-    states = hardware.recorded(joint)
-    fit, t, q, qd, u = _fit_states(*states, session.robot.joint(joint).type,
-                                   loop_period_s=session.loop.period_s, fit_friction=fit_friction)
-    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u, received=len(states[0]))
+    stamps, positions, velocities, efforts = hardware.recorded_all(joint)
+    if len(stamps) < MIN_SAMPLES:
+        raise IdentificationError(f"too few joint states to fit (at least {MIN_SAMPLES})", field="samples",
+                                  value=len(stamps))
+    k, n = hardware.joint_index(joint), len(hardware.joint_names)
+    # Every joint's states on the grid (the chain's motion loads this joint), the joint's effort beside them.
+    t, *columns = resample_uniform(np.asarray(stamps, dtype=float) - stamps[0], *np.asarray(positions).T,
+                                   *np.asarray(velocities).T, np.asarray([row[k] for row in efforts], dtype=float))
+    q_all, qd_all, u = np.column_stack(columns[:n]), np.column_stack(columns[n:2 * n]), columns[-1]
+    acceleration = differences_for(t, session.loop.period_s)
+    coupling = chain_coupling(session.robot, joint, hardware.joint_names, t, q_all, qd_all,
+                              gravity_m_s2=session.scenario.gravity_m_s2, acceleration=acceleration)
+    q, qd = q_all[:, k], qd_all[:, k]
+    fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction,
+                    acceleration=acceleration, coupling_torque=coupling.torque, inertia_scale=coupling.inertia_scale)
+    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u, coupling, received=len(stamps))
 
 
 def differences_for(t: np.ndarray, loop_period_s: float) -> str:

@@ -128,14 +128,24 @@ class ServedRobotHardware(HardwareInterface):
         """(stamp [s], position, velocity, effort) of ``joint`` in every joint state kept since
         :meth:`start_recording`; recording stops."""
         k = self.joint_index(joint)
+        stamps, positions, velocities, efforts = self.recorded_all(joint)
+        return stamps, [r[k] for r in positions], [r[k] for r in velocities], [r[k] for r in efforts]
+
+    def recorded_all(self, joint: str) -> tuple[list[float], list[tuple], list[tuple], list[tuple]]:
+        """(stamp [s], positions, velocities, efforts) of every joint state kept since
+        :meth:`start_recording`, each a row of the joints in :attr:`joint_names`' order (the chain's
+        motion, which loads ``joint``); recording stops. Refused when a state lacks the joints'
+        velocities or ``joint``'s effort (identification needs them)."""
+        k = self.joint_index(joint)
         with self._lock:
             rows, self._recording = self._recording or [], None
-        for quantity, column in (("velocity", 2), ("effort", 3)):
-            if any(r[column][k] is None for r in rows):
+        for quantity, missing in (("velocity", lambda r: any(v is None for v in r[2])),
+                                  ("effort", lambda r: r[3][k] is None)):
+            if any(missing(r) for r in rows):
                 raise JointCtlError(f"the joint states carry no {quantity} for every joint: identification "
                                     "needs position, velocity and the effort applied",
                                     field=f"/{self.namespace}/joint_states", value=quantity)
-        return ([r[0] for r in rows], [r[1][k] for r in rows], [r[2][k] for r in rows], [r[3][k] for r in rows])
+        return [r[0] for r in rows], [r[1] for r in rows], [r[2] for r in rows], [r[3] for r in rows]
 
     def read(self) -> None:
         with self._lock:
