@@ -14,9 +14,6 @@ from jointctl.cli import main
 from tests import planar_arm
 from tests.ros.conftest import run, served_graph
 
-#: Real-time measurements over the graph (a 1 kHz served arm and a 1 kHz client): the machine to themselves.
-pytestmark = pytest.mark.exclusive
-
 JOINT_STATES = "/planar_arm/joint_states"
 
 
