@@ -327,11 +327,11 @@ def spec_warnings(result: dict) -> list[str]:
             continue
         # The robot's step figures carry a step_ prefix.
         measured = {key: figures.get(key, figures.get(f"step_{key}")) for key in wanted}
+        why = {"settling_s": " (the step did not settle in the record)",
+               "bandwidth_hz": " (the gain never fell 3 dB in the sweep)"}
         for key, value in measured.items():
-            if key in figures or f"step_{key}" in figures:
-                if value is None or not math.isfinite(value):
-                    found.append(f"on {where}, {key}: not measured (the step did not settle in the record), "
-                                 f"spec {wanted[key]:.4g}.")
+            if (key in figures or f"step_{key}" in figures) and (value is None or not math.isfinite(value)):
+                found.append(f"on {where}, {key}: not measured{why.get(key, '')}, spec {wanted[key]:.4g}.")
         found += [f"on {where}, {sentence}" for sentence in expectation_warnings(measured, wanted, against="spec")]
     return found
 
