@@ -76,6 +76,8 @@ def _run(args: argparse.Namespace) -> int:
                            package_path=tuple(args.package_path), video=_video_settings(args), view=args.view)
     shown = {k: v for k, v in metrics.items() if k not in ("plant",)}
     print(metrics_json(shown))
+    for warning in metrics.get("warnings", []):
+        print(f"warning: {warning}", file=sys.stderr)
     print(f"wrote {out}/", file=sys.stderr)
     return 0
 

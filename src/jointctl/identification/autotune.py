@@ -206,6 +206,7 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
     if check_on_robot:
         result["robot"] = _check_on_robot(scenario_for, controller_name, result["gains"], loop, result["check_step"],
                                           bandwidth_hz)
+    result.setdefault("warnings", []).extend(spec_warnings(result))
     if out_dir is not None:
         source = Path(scenario.controller_file)
         _write(out_dir, source.name, read_yaml(source), controller_name, result)
@@ -308,11 +309,37 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
         finally:
             hardware.set_gains(controller_name, previous)
         result["gains_restored"] = hardware.gains(controller_name)
+    result.setdefault("warnings", []).extend(spec_warnings(result))
     if out_dir is not None:
         namespace = hardware.namespace
         _write(out_dir, f"{namespace}_tuned_params.yaml", {namespace: hardware.controller_parameters()},
                controller_name, result)
     return result
+
+
+def spec_warnings(result: dict) -> list[str]:
+    """A sentence for each figure of the model's prediction and of the check on the robot that misses
+    the spec by more than its margin (:mod:`jointctl.metrics.expectations`: bandwidth 5 %, step
+    overshoot 3 points, settling time 10 %, the latter when the spec gave one), or that was not
+    measured at all (a step that never settled)."""
+    from jointctl.metrics.expectations import expectation_warnings
+
+    spec = result["spec"]
+    wanted = {key: spec.get(key) for key in ("bandwidth_hz", "overshoot_pct", "settling_s")}
+    wanted = {key: float(value) for key, value in wanted.items() if value is not None}
+    found = []
+    for where, figures in (("the model", result.get("model")), ("the robot", result.get("robot"))):
+        if not figures:
+            continue
+        # The robot's step figures carry a step_ prefix.
+        measured = {key: figures.get(key, figures.get(f"step_{key}")) for key in wanted}
+        why = {"settling_s": " (the step did not settle in the record)",
+               "bandwidth_hz": " (the gain never fell 3 dB in the sweep)"}
+        for key, value in measured.items():
+            if (key in figures or f"step_{key}" in figures) and (value is None or not math.isfinite(value)):
+                found.append(f"on {where}, {key}: not measured{why.get(key, '')}, spec {wanted[key]:.4g}.")
+        found += [f"on {where}, {sentence}" for sentence in expectation_warnings(measured, wanted, against="spec")]
+    return found
 
 
 def _gravity_load(robot, pose: dict, joint: str, gravity_m_s2) -> float:
@@ -439,4 +466,4 @@ def _write(out_dir, file_name: str, document: dict, controller_name: str, result
 
 
 __all__ = ["autotune", "autotune_servoed", "bandwidth_ratio", "design", "overshoot_of", "settling_time",
-           "spec_from_step", "tune", "zeta_of"]
+           "spec_from_step", "spec_warnings", "tune", "zeta_of"]
