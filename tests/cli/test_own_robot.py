@@ -101,3 +101,17 @@ def test_identify_bode_and_autotune_take_the_folder(folder, capsys) -> None:
     # On the arm the shoulder's loop (about 3 Hz) takes up part of the elbow's motion: the one-joint
     # design measures less than it promised there.
     assert 0 < tuned["robot"]["bandwidth_hz"] < 6.0 and math.isfinite(tuned["robot"]["step_zeta"])
+
+
+def test_inits_step_scenario_runs_its_analysis_against_the_gravity_theory(folder, capsys) -> None:
+    metrics, err = run_json(capsys, "run", "arm/scenarios/step_shoulder.yaml", "--out", "step")
+    assert "took arm/scenarios/step_shoulder.yaml as a scenario" in err
+    # The P loop rests where p·(r - q) balances the load: the theory's sag, measured to 2 %.
+    expected = metrics["expected"]["steady_state_error_rad"]
+    assert expected < -0.02 and metrics["steady_state_error_rad"] == pytest.approx(expected, rel=0.02)
+    # The designed loop (ζ 0.7 with the derivative on the error, on a chain) does not overshoot enough
+    # to fit an oscillation: the figures read off the samples stand and the note says why.
+    assert metrics["natural_frequency_rad_s"] is None and "no overshoot" in metrics["fit_note"]
+    assert metrics["settling_time_s"] > 0 and metrics["rise_time_s"] > 0
+    # Its first cycle asks the derivative kick d·step/period, clamped at the effort limit: said.
+    assert any("limit" in w for w in metrics["warnings"]) and "warning:" in err
