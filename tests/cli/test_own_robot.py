@@ -93,7 +93,7 @@ def test_identify_bode_and_autotune_take_the_folder(folder, capsys) -> None:
         assert measured == pytest.approx(modelled, abs=1.0)
     assert bode["controller"] == "elbow_position_controller"
 
-    tuned, _ = run_json(capsys, "autotune", "arm", "--controller", "elbow_position_controller", "--bandwidth-hz", "6",
+    tuned, err = run_json(capsys, "autotune", "arm", "--controller", "elbow_position_controller", "--bandwidth-hz", "6",
                         "--zeta", "0.7", "--out", "tuned")
     written = read_yaml(tuned["yaml"])["planar_arm"]["elbow_position_controller"]["pid"]
     assert written["p"] == pytest.approx(tuned["gains"]["p"]) and tuned["derivative"] == "error"
@@ -101,6 +101,9 @@ def test_identify_bode_and_autotune_take_the_folder(folder, capsys) -> None:
     # On the arm the shoulder's loop (about 3 Hz) takes up part of the elbow's motion: the one-joint
     # design measures less than it promised there.
     assert 0 < tuned["robot"]["bandwidth_hz"] < 6.0 and math.isfinite(tuned["robot"]["step_zeta"])
+    # ... and says so, beyond its margin (5 %).
+    missed = [w for w in tuned["warnings"] if "bandwidth" in w]
+    assert tuned["robot"]["bandwidth_hz"] < 0.95 * 6.0 and missed and f"jointctl: warning: {missed[0]}" in err
 
 
 def test_inits_step_scenario_runs_its_analysis_against_the_gravity_theory(folder, capsys) -> None:

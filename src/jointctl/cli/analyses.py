@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from jointctl.cli.common import (CONTROLLERS_HELP, SET_VALUES, industrial_hardware, loop_hardware_arguments,
-                                 target_scenario)
+                                 say_warnings, target_scenario)
 from jointctl.errors import JointCtlError
 from jointctl.recording.metrics_file import metrics_json
 
@@ -321,6 +321,7 @@ def _autotune(args: argparse.Namespace) -> int:
                           bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step, plant=plant, out_dir=args.out,
                           settling_s=settling_s)
     print(metrics_json(result))
+    say_warnings(result)
     print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0
 

@@ -17,6 +17,12 @@ def positive_speed(args: argparse.Namespace) -> None:
         raise JointCtlError("must be positive", field="--speed", value=args.speed)
 
 
+def say_warnings(metrics: dict) -> None:
+    """Print an analysis's ``warnings`` (figures off their theory or spec, saturated efforts) on stderr."""
+    for warning in metrics.get("warnings", []):
+        print(f"jointctl: warning: {warning}", file=sys.stderr)
+
+
 def ros_edge(module: str):
     """``jointctl.ros.<module>``, or one line saying ROS 1 is missing."""
     import importlib

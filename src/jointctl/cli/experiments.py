@@ -6,7 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from jointctl.cli.common import CONTROLLERS_HELP, SET_VALUES, TARGET_HELP, positive_speed, target_scenario
+from jointctl.cli.common import (CONTROLLERS_HELP, SET_VALUES, TARGET_HELP, positive_speed, say_warnings,
+                                 target_scenario)
 from jointctl.errors import JointCtlError
 from jointctl.recording.metrics_file import metrics_json
 
@@ -76,8 +77,7 @@ def _run(args: argparse.Namespace) -> int:
                            package_path=tuple(args.package_path), video=_video_settings(args), view=args.view)
     shown = {k: v for k, v in metrics.items() if k not in ("plant",)}
     print(metrics_json(shown))
-    for warning in metrics.get("warnings", []):
-        print(f"warning: {warning}", file=sys.stderr)
+    say_warnings(metrics)
     print(f"wrote {out}/", file=sys.stderr)
     return 0
 
