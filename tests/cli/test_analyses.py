@@ -76,7 +76,7 @@ def test_crossing_the_workspace_exits_2_naming_the_limit_the_value_and_the_time(
                  "--f-min-hz", "3.0", "--f-max-hz", "3.17", "--points", "2", "--plant", str(tmp_path / "plant.json"),
                  "--workspace=-0.65:-0.35", "--out", str(tmp_path / "out")])
     assert code == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1
-    assert err[0].startswith("jointctl: error: --workspace: the joint's position reached -0.65")
-    assert "at t = " in err[0] and "ramped back to -0.5 m" in err[0] and "at rest" in err[0]
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("jointctl: error: ")]
+    assert len(errors) == 1
+    assert errors[0].startswith("jointctl: error: --workspace: the joint's position reached -0.65")
+    assert "at t = " in errors[0] and "ramped back to -0.5 m" in errors[0] and "at rest" in errors[0]

@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from jointctl.identification.autotune import (autotune, bandwidth_ratio, design, overshoot_of, spec_from_step,
-                                              zeta_of)
+                                              spec_warnings, zeta_of)
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.scenario.spec import scenario_for_robot
 
@@ -56,6 +56,7 @@ def test_the_one_dof_robot_meets_zeta_07_and_5_hz(tmp_path) -> None:
     assert result["robot"]["bandwidth_hz"] == pytest.approx(5.0, rel=0.05)
     assert result["model"]["overshoot_pct"] == pytest.approx(4.6, abs=0.05)
     assert result["model"]["bandwidth_hz"] == pytest.approx(5.0, rel=0.005)
+    assert result["warnings"] == []  # the spec met within its margins
     written = yaml.safe_load((tmp_path / "one_dof_pos_ctl_params.yaml").read_text())
     pid = written["one_DOF_robot"]["joint1_position_controller"]["pid"]
     assert pid == pytest.approx({k: round(v, 6) for k, v in result["gains"].items()})
@@ -89,6 +90,26 @@ def test_the_one_dof_robot_meets_10_percent_in_03_s() -> None:
     assert result["robot"]["step_overshoot_pct"] == pytest.approx(10.0, abs=1.0)
     assert result["robot"]["step_settling_s"] == pytest.approx(0.3, rel=0.1)
     assert result["model"]["settling_s"] == pytest.approx(0.3, rel=0.05)
+
+
+def test_a_spec_missed_by_more_than_its_margin_is_a_warning() -> None:
+    # A user's arm met 2.68 Hz of a 3.0 Hz spec: 10.7 % short, beyond the bandwidth's 5 % margin.
+    result = {"spec": {"bandwidth_hz": 3.0, "zeta": 0.7, "overshoot_pct": 4.6, "settling_s": None},
+              "model": {"bandwidth_hz": 3.0, "overshoot_pct": 4.6, "settling_s": 0.9},
+              "robot": {"bandwidth_hz": 2.68, "step_overshoot_pct": 6.0, "step_settling_s": 1.2}}
+    found = spec_warnings(result)
+    assert len(found) == 1
+    assert found[0].startswith("on the robot, bandwidth_hz: measured 2.68, spec 3: off by 10.7 %")
+    assert "margin of 5 %" in found[0]
+    result["robot"]["bandwidth_hz"] = 2.9  # 3.3 % short: within the margin
+    result["robot"]["step_overshoot_pct"] = 8.0  # 3.4 points over: beyond the 3 points
+    assert [w.split(":")[0] for w in spec_warnings(result)] == ["on the robot, overshoot_pct"]
+    # A settling time is judged when the spec gave one; a step that never settled says so.
+    result["spec"]["settling_s"] = 0.3
+    result["robot"].update(step_overshoot_pct=4.6, step_settling_s=float("nan"))
+    result["model"]["settling_s"] = 0.31
+    assert spec_warnings(result) == ["on the robot, settling_s: not measured (the step did not settle in the record), "
+                                     "spec 0.3."]
 
 
 def test_a_bad_step_spec_is_refused_naming_the_field() -> None:

@@ -115,22 +115,59 @@ def test_sparse_states_take_central_differences_within_their_truncation_error() 
     assert abs(forward.damping - 7.0) > 10 * abs(central.damping - 7.0)
 
 
-def test_states_with_a_lost_message_are_put_on_a_uniform_grid() -> None:
+def test_states_a_little_off_their_period_are_put_on_the_grid_and_lost_ones_cut_out() -> None:
     t, q, qd, u = sampled_sine(1000.0, 1.0, seconds=4.0)
     keep = np.ones(t.size, dtype=bool)
-    keep[[500, 1700, 1701]] = False  # three states lost on the way
+    keep[[500, 1700, 1701]] = False  # three states lost on the way: two gaps, of 2 and 3 periods
     jitter = np.where(np.arange(t.size) % 7 == 0, 2e-5, 0.0)  # and stamps a little off the grid
     grid, *columns = resample_uniform((t + jitter)[keep], q[keep], qd[keep], u[keep])
-    assert np.allclose(np.diff(grid), 0.001, rtol=1e-3)
+    steps = np.diff(grid)
+    assert np.allclose(np.sort(steps)[:-2], 0.001, rtol=1e-9)  # one period inside each stretch
+    assert np.sort(steps)[-2:] == pytest.approx([0.002, 0.003], abs=3e-5)  # the gaps: not interpolated
     fit = fit_plant(grid, *columns, joint_type="prismatic", acceleration="central")
+    assert [at for at, _ in fit.gaps] == pytest.approx([0.499, 1.699], abs=3e-5)
     assert fit.inertia == pytest.approx(2.5, rel=0.01) and fit.damping == pytest.approx(7.0, rel=0.01)
 
 
-def test_a_gap_in_the_states_is_refused_naming_where() -> None:
+def test_gaps_are_cut_out_of_the_fit_which_reports_them_and_identifies_the_same_plant() -> None:
+    # Every cycle recorded, with noise on the effort, then 10 ms and 50 ms of it lost. Each gap costs the
+    # lost time and the row whose forward difference would span it; the fit is the same within its
+    # intervals, and the truth is inside them.
+    rng = np.random.default_rng(11)
+    t, q, qd = motion(10.0)
+    truth = {"inertia": 1.0, "damping": 10.0, "friction": 0.5, "gravity_load": 9.81}
+    effort = (forward_difference(qd) + 10.0 * qd + 0.5 * np.sign(qd) + 9.81) + rng.normal(0, 0.2, t.size)
+    whole = fit_plant(t, q, qd, effort, joint_type="prismatic", max_shift_cycles=0)
+    lost = ((t >= 2.0) & (t < 2.01)) | ((t >= 6.7) & (t < 6.75))
+    keep = ~lost
+    cut = fit_plant(t[keep], q[keep], qd[keep], effort[keep], joint_type="prismatic", max_shift_cycles=0)
+    assert np.ravel(cut.gaps) == pytest.approx([1.999, 0.011, 6.699, 0.051], abs=1e-9)
+    assert cut.samples_given == t.size - lost.sum() == 9940
+    assert cut.span_s == pytest.approx(10.0) and cut.usable_s == pytest.approx(9.94)
+    assert cut.share_used == pytest.approx(0.994)
+    for name, value in truth.items():
+        ci = getattr(cut, f"{name}_ci95")
+        assert abs(getattr(cut, name) - value) < ci  # the truth inside the interval
+        assert abs(getattr(cut, name) - getattr(whole, name)) < ci  # and the whole recording's fit
+    assert whole.gaps == () and whole.share_used == 1.0
+
+
+def test_a_recording_that_is_mostly_gaps_is_refused_saying_how_much_was_left() -> None:
+    # Joint states at 50 Hz over 10 s, of which six stretches of 0.2 s arrived: 60 states, 1.2 s; central
+    # differences leave 8 rows in each stretch of 10 (its ends have no neighbour), 48 rows < 50.
+    t, q, qd, u = sampled_sine(50.0, 1.0, seconds=10.0)
+    keep = np.zeros(t.size, dtype=bool)
+    for start in (0.0, 2.0, 4.0, 6.0, 8.0, 9.8):
+        keep |= (t >= start - 1e-9) & (t < start + 0.2 - 1e-9)
+    assert keep.sum() == 60
+    grid, *columns = resample_uniform(t[keep], q[keep], qd[keep], u[keep])
+    with pytest.raises(IdentificationError, match=r"only 1\.2 s of 10 s usable after cutting 5 gaps: need at "
+                                                  r"least 50 samples inside unbroken stretches, 48 left") as info:
+        fit_plant(grid, *columns, joint_type="prismatic", acceleration="central")
+    assert info.value.field == "samples" and info.value.value == 48
+
+
+def test_a_differencing_rule_other_than_forward_or_central_is_refused() -> None:
     t, q, qd, u = sampled_sine(1000.0, 1.0, seconds=2.0)
-    keep = (t < 0.9) | (t > 1.0)  # 100 ms missing
-    with pytest.raises(IdentificationError, match=r"a gap of 0\.1\d* s .* at t = 0\.899") as info:
-        resample_uniform(t[keep], q[keep])
-    assert info.value.field == "time_s"
     with pytest.raises(IdentificationError, match="forward or central"):
         fit_plant(t, q, qd, u, joint_type="prismatic", acceleration="backward")

@@ -215,7 +215,9 @@ def test_step_result_is_frozen_and_json_ready():
         "final_value",
         "fit_window_s",
         "fit_rms_error",
+        "fit_note",
     }
+    assert d.pop("fit_note") is None  # fitted
     assert all(type(v) is float for v in d.values())
     assert json.loads(json.dumps(d, allow_nan=False)) == d
 
@@ -247,12 +249,18 @@ def test_step_errors():
     with pytest.raises(ValueError, match="did not follow the step"):
         step_response(t, command, np.full_like(t, -0.2), step_time_s=0.5)
 
-    # Overdamped (zeta = 1.5) response: nothing to fit an oscillation to.
+    # Overdamped (zeta = 5/3) response: nothing to fit an oscillation to. The figures read off the
+    # samples stand (the 10-90 % rise of the slow pole, ln 9 / 5 s, as it dominates), ωn and ζ are
+    # NaN and the note says why.
     tau = np.clip(t - 0.5, 0.0, None)
     p1, p2 = -5.0, -45.0  # poles of s^2 + 50 s + 225: wn = 15, zeta = 5/3
     overdamped = -0.2 - 0.3 * (1 + (p2 * np.exp(p1 * tau) - p1 * np.exp(p2 * tau)) / (p1 - p2))
-    with pytest.raises(ValueError, match="no overshoot detected"):
-        step_response(t, command, overdamped, step_time_s=0.5)
+    flat = step_response(t, command, overdamped, step_time_s=0.5)
+    assert math.isnan(flat.natural_frequency_rad_s) and math.isnan(flat.damping_ratio)
+    assert "no overshoot detected" in flat.fit_note and flat.overshoot_pct == pytest.approx(0.0, abs=1e-6)
+    assert flat.rise_time_s == pytest.approx(math.log(9) / 5, rel=0.03)
+    assert flat.final_value == pytest.approx(-0.5, abs=1e-4)
+    assert step_response(t, command, position, step_time_s=0.5).fit_note is None
 
     with pytest.raises(ValueError, match="samples but time_s has"):
         step_response(t, command[:-1], position, step_time_s=0.5)

@@ -1,7 +1,8 @@
 """The ``jointctl`` command: one module a command family, each adding its sub-commands to the parser.
 
     jointctl list                                   built-in robots and scenarios
-    jointctl run SCENARIO [--out DIR] [--set K=V]   run one scenario: trace.csv, metrics.json, PNGs
+    jointctl run SCENARIO [--out DIR] [--set K=V]   run one scenario (or hold a robot): trace.csv, metrics.json, PNGs
+    jointctl init ROBOT.urdf|xacro [--out DIR]      a robot folder for your own robot, starting gains from its model
     jointctl demo [--out DIR]                       every built-in experiment and report.md
     jointctl serve ROBOT --controllers NAME         the robot as a ROS 1 node (chapter topic and action names)
     jointctl prompt arm7dof [--out DIR]             move the arm one joint at a time (prompter)
@@ -28,12 +29,12 @@ import argparse
 import sys
 
 from jointctl import __version__
-from jointctl.cli import analyses, clients, controller, experiments, serve, tune
+from jointctl.cli import analyses, clients, controller, experiments, init, serve, tune
 from jointctl.errors import JointCtlError
 
 EXIT_USAGE = 2
 #: The command families, in the order ``jointctl --help`` lists their commands.
-FAMILIES = (experiments, serve, clients, tune, controller, analyses)
+FAMILIES = (experiments, init, serve, clients, tune, controller, analyses)
 
 
 def build_parser() -> argparse.ArgumentParser:

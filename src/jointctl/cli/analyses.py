@@ -9,27 +9,33 @@ import json
 import sys
 from pathlib import Path
 
-from jointctl.cli.common import (SET_VALUES, industrial_hardware, loop_hardware_arguments, safety_arguments,
-                                 safety_from_args)
+from jointctl.cli.common import (CONTROLLERS_HELP, SET_VALUES, industrial_hardware, loop_hardware_arguments,
+                                 safety_arguments, safety_from_args, say_warnings, target_scenario)
 from jointctl.errors import JointCtlError
 from jointctl.recording.metrics_file import metrics_json
+
+
+#: The target of identify, bode and autotune.
+ROBOT_TARGET_HELP = ("a robot (a built-in name, a folder with a robot.yaml, a robot.yaml, a .urdf or .xacro with "
+                     "--controllers) or a scenario; with --hardware ros it may be left out: the model is read "
+                     "from the served /robot_description")
 
 
 def add_parsers(sub) -> None:
     identify = sub.add_parser("identify", help="excite a joint (or read a recorded trace.csv or rosbag) and fit its "
                                                "inertia, damping, Coulomb friction and gravity load")
-    identify.add_argument("target", help="a built-in robot, a scenario YAML / name, a trace.csv or a .bag")
+    identify.add_argument("target", nargs="?", help=f"{ROBOT_TARGET_HELP}, a trace.csv or a .bag")
     identify.add_argument("--joint", required=True, help="the joint to identify")
     loop_hardware_arguments(identify)
     identify.add_argument("--topic", help="with a bag: its JointState topic (default: the one naming the joint)")
-    identify.add_argument("--controllers", default="position",
-                          help="with a robot: the controller file whose position controller excites the joint "
-                               "(default position)")
+    identify.add_argument("--controllers", default=None,
+                          help=f"{CONTROLLERS_HELP}; its position controller excites the joint")
     identify.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                           help=f"override a scenario field, e.g. initial_positions.joint1=-0.3; {SET_VALUES}")
     identify.add_argument("--joint-type", choices=("prismatic", "revolute", "continuous"),
                           help="with a trace or bag: the joint's type (default: read from --robot)")
-    identify.add_argument("--robot", help="with a trace or bag: the built-in robot it was recorded on")
+    identify.add_argument("--robot", help="with a trace or bag: the robot it was recorded on (a built-in name, a "
+                                          "robot folder, robot.yaml, .urdf or .xacro)")
     identify.add_argument("--amplitude", type=float, help="excitation amplitude [m or rad] (default: the safe one)")
     identify.add_argument("--duration-s", type=float, default=10.0, help="excitation length [s] (default 10)")
     identify.add_argument("--f-start-hz", type=float, default=0.2, help="chirp start frequency (default 0.2 Hz)")
@@ -42,13 +48,12 @@ def add_parsers(sub) -> None:
 
     bode = sub.add_parser("bode", help="a joint loop's closed-loop frequency response by stepped sines, beside "
                                        "its model; bandwidth, resonance, margins")
-    bode.add_argument("target", help="a built-in robot or a scenario YAML / name")
+    bode.add_argument("target", nargs="?", help=ROBOT_TARGET_HELP)
     bode.add_argument("--controller", help="the joint position or velocity controller to sweep (sim and ros)")
     bode.add_argument("--joint", help="with --hardware industrial: the joint whose controller's loop to sweep")
     loop_hardware_arguments(bode)
     bode.add_argument("--controllers", default=None,
-                      help="with a robot: the controller file to load (default: position, or velocity for a "
-                           "velocity controller's name)")
+                      help=f"{CONTROLLERS_HELP}, or velocity for a velocity controller's name")
     bode.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                       help=f"override a scenario field; {SET_VALUES}")
     bode.add_argument("--f-min-hz", type=float, default=0.5, help="lowest frequency (default 0.5 Hz)")
@@ -62,11 +67,11 @@ def add_parsers(sub) -> None:
 
     tune_gains = sub.add_parser("autotune", help="PD/P gains for a damping ratio and a bandwidth, checked on the "
                                                  "model and on the robot, written as the chapter's YAML")
-    tune_gains.add_argument("target", help="a built-in robot or a scenario YAML / name")
+    tune_gains.add_argument("target", nargs="?", help=ROBOT_TARGET_HELP)
     tune_gains.add_argument("--controller", required=True, help="the joint position or velocity controller to tune")
     loop_hardware_arguments(tune_gains)
-    tune_gains.add_argument("--controllers", default=None, help="with a robot: the controller file (default: "
-                                                                "position, or velocity for a velocity controller)")
+    tune_gains.add_argument("--controllers", default=None,
+                            help=f"{CONTROLLERS_HELP}, or velocity for a velocity controller's name")
     tune_gains.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                             help=f"override a scenario field; {SET_VALUES}")
     tune_gains.add_argument("--bandwidth-hz", type=float, help="closed-loop -3 dB bandwidth [Hz]")
@@ -86,11 +91,10 @@ def add_parsers(sub) -> None:
 
 def _identify(args: argparse.Namespace) -> int:
     from jointctl.identification.identify import identify_on_robot, identify_states, identify_trace
-    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
 
     friction = not args.no_friction
     safety = safety_from_args(args)
-    if args.target.endswith((".csv", ".bag")):
+    if args.target is not None and args.target.endswith((".csv", ".bag")):
         if args.dry_run:
             raise JointCtlError("plans an excitation; a recorded trace or bag has none", field="--dry-run")
         joint_type = args.joint_type or _joint_type(args.robot, args.joint)
@@ -116,8 +120,10 @@ def _identify(args: argparse.Namespace) -> int:
                                           duration_s=args.duration_s, f_start_hz=args.f_start_hz,
                                           f_end_hz=args.f_end_hz, fit_friction=friction, safety=safety, plant=plant)
     else:
-        scenario = (scenario_for_robot(args.target, args.controllers, args.overrides)
-                    if args.target in builtin_robots() else load_scenario(args.target, args.overrides))
+        if args.dry_run and args.target is None:
+            raise JointCtlError("reads the model from the target: give the robot or scenario (the served "
+                                "/robot_description is read only when the robot moves)", field="--dry-run")
+        scenario = target_scenario(args)
         if args.dry_run:
             from jointctl.identification.plan import plan_identify
 
@@ -136,32 +142,71 @@ def _identify(args: argparse.Namespace) -> int:
 @contextlib.contextmanager
 def _served(args: argparse.Namespace, *, controller: str | None = None, joint: str | None = None):
     """(session, controller name) on the robot a node serves on the ROS graph (``--hardware ros``):
-    the built-in robot's model, its loop found on the graph, the session paced to the wall clock;
-    the loop's reference put back where it was on the way out."""
+    the model from the target (any robot, or a scenario's) or, without one, from the served
+    ``/robot_description``; the loop found on the graph under ``--namespace`` (default: the
+    controller file's namespace, else the one namespace holding the joints' loops); the session
+    paced to the wall clock; the loop's reference put back where it was on the way out."""
+    import dataclasses
+    import tempfile
+
     from jointctl.control.manager import read_yaml
     from jointctl.model.loader import load_robot_model
-    from jointctl.ros.served_hardware import connect
+    from jointctl.ros.served_hardware import connect, served_description, served_namespaces
     from jointctl.scenario.session import Session
-    from jointctl.scenario.spec import builtin_robots, scenario_for_robot
+    from jointctl.scenario.spec import RobotFiles, load_scenario, scenario_for_robot
+    from jointctl.scenario.targets import robot_files
 
-    if args.target not in builtin_robots():
-        raise JointCtlError("--hardware ros needs a built-in robot (its model)", field="target", value=args.target)
-    scenario = scenario_for_robot(args.target, "position",
-                                  [*args.overrides, "start_controllers=[joint_state_controller]"])
-    namespace = args.namespace
-    if namespace is None:
-        tree = read_yaml(scenario.controller_file)
-        namespace = next(iter(tree)) if isinstance(tree, dict) and len(tree) == 1 else None
+    with tempfile.TemporaryDirectory(prefix="jointctl-served-") as folder:
+        folder = Path(folder)
+        scenario = controller_file = None
+        if args.target is None:
+            text, param = served_description(args.namespace)
+            description = folder / "robot_description.urdf"
+            description.write_text(text)
+            files, taken = RobotFiles("robot_description", description, {}, folder), f"the model on {param}"
+        elif (found := robot_files(args.target)) is not None:
+            files, taken = found
+            key = args.controllers or "position"
+            controller_file = files.controller_files.get(key) or (Path(key) if Path(key).is_file() else None)
+            taken = f"{args.target} as {taken}"
+        else:
+            scenario = load_scenario(args.target, args.overrides)
+            files, controller_file, taken = scenario.robot, scenario.controller_file, f"{args.target} as a scenario"
+        names = [j.name for j in load_robot_model(files.description).movable_joints]
+        namespace = args.namespace or _namespace_of(controller_file and read_yaml(controller_file))
         if namespace is None:
-            raise JointCtlError("the robot's controller file has no single namespace: give it", field="--namespace")
-    names = [j.name for j in load_robot_model(scenario.robot.description).movable_joints]
-    hardware, name = connect(namespace, names, controller, joint=joint)
-    try:
-        yield Session(scenario, hardware=hardware, realtime=True), name
-    finally:
-        hardware.hold(hardware.set_points)
-        hardware.write()
-        hardware.close()
+            candidates = served_namespaces(names)
+            if len(candidates) != 1:
+                raise JointCtlError(f"give the served robot's namespace (namespaces with loops of its joints: "
+                                    f"{', '.join(candidates) or 'none'})", field="--namespace")
+            namespace = candidates[0]
+        states = folder / "joint_state_controller.yaml"
+        states.write_text(f"{namespace}:\n  joint_state_controller:\n"
+                          "    type: joint_state_controller/JointStateController\n    publish_rate: 50\n")
+        if scenario is None:
+            scenario = scenario_for_robot(files, str(states), [*args.overrides,
+                                                               "start_controllers=[joint_state_controller]"])
+        else:
+            scenario = dataclasses.replace(scenario, controller_file=states, controller_overrides={}, commands={},
+                                           start_controllers=("joint_state_controller",), objects=(), goals=())
+        print(f"jointctl: took {taken}; its loops on /{namespace}", file=sys.stderr)
+        hardware, name = connect(namespace, names, controller, joint=joint)
+        try:
+            yield Session(scenario, hardware=hardware, realtime=True), name
+        finally:
+            hardware.hold(hardware.set_points)
+            hardware.write()
+            hardware.close()
+
+
+def _namespace_of(tree) -> str | None:
+    """The namespace of a ros_control controller file's tree: its one top-level key holding
+    controllers (mappings without a ``type`` of their own), else None."""
+    if isinstance(tree, dict) and len(tree) == 1:
+        (key, body), = tree.items()
+        if isinstance(body, dict) and "type" not in body:
+            return str(key)
+    return None
 
 
 def _bode(args: argparse.Namespace) -> int:
@@ -202,15 +247,15 @@ def _bode(args: argparse.Namespace) -> int:
 def _bode_plan(args: argparse.Namespace, frequencies, safety) -> dict:
     """``bode --dry-run``'s plan: the loop's scenario (a servo loop's joint with --hardware industrial)."""
     from jointctl.identification.plan import plan_bode
-    from jointctl.scenario.spec import builtin_robots, scenario_for_robot
 
     plant = _plant_file(args.plant)
+    if args.target is None:
+        raise JointCtlError("reads the model from the target: give the robot or scenario (the served "
+                            "/robot_description is read only when the robot moves)", field="--dry-run")
     if args.hardware == "industrial":
         if not args.joint:
             raise JointCtlError("is required with --hardware industrial", field="--joint")
-        if args.target not in builtin_robots():
-            raise JointCtlError("--hardware industrial needs a built-in robot", field="target", value=args.target)
-        scenario = scenario_for_robot(args.target, "industrial", args.overrides)
+        scenario = target_scenario(args, default_controllers="industrial")
         return plan_bode(scenario, None, frequencies, joint=args.joint, amplitude=args.amplitude, safety=safety)
     if not args.controller:
         raise JointCtlError("is required (the loop to sweep)", field="--controller")
@@ -231,13 +276,11 @@ def _bode_industrial(args: argparse.Namespace, frequencies, safety=None) -> dict
     real time (no model: its servos are the controller's)."""
     from jointctl.identification.frequency_response import analyse, measure_servoed, write_bode
     from jointctl.scenario.session import Session
-    from jointctl.scenario.spec import builtin_robots, scenario_for_robot
 
     if not args.joint:
         raise JointCtlError("is required with --hardware industrial", field="--joint")
-    if args.target not in builtin_robots():
-        raise JointCtlError("--hardware industrial needs a built-in robot", field="target", value=args.target)
-    scenario = scenario_for_robot(args.target, "industrial", [*args.overrides, "start_controllers=[joint_state_controller]"])
+    scenario = target_scenario(args, default_controllers="industrial",
+                               robot_overrides=["start_controllers=[joint_state_controller]"])
     hardware = industrial_hardware(args, scenario)
     try:
         session = Session(scenario, hardware=hardware, realtime=True)
@@ -286,13 +329,11 @@ def _plant_file(path: Path | None) -> dict | None:
 
 
 def _loop_scenario(args: argparse.Namespace, overrides=()):
-    """The scenario of ``bode``/``autotune``: a built-in robot with the controller file its loop needs."""
-    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
-
-    if args.target in builtin_robots():
-        controllers = args.controllers or ("velocity" if "velocity" in args.controller else "position")
-        return scenario_for_robot(args.target, controllers, [*args.overrides, *overrides])
-    return load_scenario(args.target, [*args.overrides, *overrides])
+    """The scenario of ``bode``/``autotune``: a robot with the controller file its loop needs (default
+    position, velocity for a velocity controller's name), or a scenario; what the target was taken
+    for said once, when no gains under test are set."""
+    default = "velocity" if "velocity" in args.controller else "position"
+    return target_scenario(args, default_controllers=default, extra_overrides=overrides, say=not overrides)
 
 
 def _autotune_spec(args: argparse.Namespace) -> tuple[float, float, float | None]:
@@ -342,23 +383,23 @@ def _autotune(args: argparse.Namespace) -> int:
                           bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step, plant=plant, out_dir=args.out,
                           settling_s=settling_s, safety=safety)
     print(metrics_json(result))
-    for warning in result.get("warnings") or []:
-        print(f"jointctl: warning: {warning}", file=sys.stderr)
+    say_warnings(result)
     print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0
 
 
 def _joint_type(robot: str | None, joint: str) -> str:
-    """The type of ``joint`` of built-in ``robot`` (for identifying from a trace)."""
+    """The type of ``joint`` of ``robot`` (a built-in name or a robot's file; for a trace)."""
     from jointctl.model.loader import load_robot_model
-    from jointctl.scenario.spec import builtin_robots, read_robot_manifest
+    from jointctl.scenario.targets import robot_files
 
     if robot is None:
         raise JointCtlError("a trace needs --joint-type or --robot (to read the joint's type)", field="--joint-type")
-    robots = builtin_robots()
-    if robot not in robots:
-        raise JointCtlError(f"no such built-in robot (built-in: {', '.join(robots)})", field="--robot", value=robot)
-    model = load_robot_model(read_robot_manifest(robots[robot] / "robot.yaml").description)
+    found = robot_files(robot)
+    if found is None:
+        raise JointCtlError("no such robot (a built-in name, a robot folder, robot.yaml, .urdf or .xacro)",
+                            field="--robot", value=robot)
+    model = load_robot_model(found[0].description)
     if not model.has_joint(joint):
         raise JointCtlError(f"no such joint on {robot}", field="--joint", value=joint)
     return model.joint(joint).type

@@ -4,6 +4,7 @@ robot controller over simple_message."""
 from __future__ import annotations
 
 import argparse
+import sys
 
 from jointctl.errors import JointCtlError
 from jointctl.hardware.industrial import POINT_MESSAGES, STREAM_POINTS
@@ -14,6 +15,12 @@ def positive_speed(args: argparse.Namespace) -> None:
     """``--speed`` is loop time per wall-clock time: refuse zero, negatives and NaN."""
     if not args.speed > 0:
         raise JointCtlError("must be positive", field="--speed", value=args.speed)
+
+
+def say_warnings(metrics: dict) -> None:
+    """Print an analysis's ``warnings`` (figures off their theory or spec, saturated efforts) on stderr."""
+    for warning in metrics.get("warnings", []):
+        print(f"jointctl: warning: {warning}", file=sys.stderr)
 
 
 def ros_edge(module: str):
@@ -90,6 +97,12 @@ def industrial_arguments(parser: argparse.ArgumentParser) -> None:
                              "default: robot.yaml industrial.default_speed, else 0.1)")
 
 
+#: What a command's robot argument may be (see :mod:`jointctl.scenario.targets`).
+TARGET_HELP = ("a robot (a built-in name, a folder with a robot.yaml, a robot.yaml, a .urdf or .xacro with "
+               "--controllers) or a scenario (a YAML or a built-in name)")
+CONTROLLERS_HELP = ("with a robot: its controller file to load and start, every controller of it (a robot.yaml "
+                    "key, or a ros_control YAML; default position)")
+
 #: What ``--set KEY=VALUE`` accepts, said in every command's help.
 SET_VALUES = ("VALUE is YAML, numbers as written (800, 1_000, .5, 1e3, 1E-3, -2.5e+2), true/false, "
               "[lists]; repeatable")
@@ -97,24 +110,38 @@ SET_VALUES = ("VALUE is YAML, numbers as written (800, 1_000, .5, 1e3, 1E-3, -2.
 
 def live_target_arguments(parser: argparse.ArgumentParser) -> None:
     """What serve and tune share: a robot and its controller file, or a scenario, run on the wall clock."""
-    parser.add_argument("target", help="a built-in robot (with --controllers) or a scenario YAML / name")
-    parser.add_argument("--controllers", default=None,
-                        help="with a robot: which of its controller files to load and start (default position)")
+    parser.add_argument("target", help=TARGET_HELP)
+    parser.add_argument("--controllers", default=None, help=CONTROLLERS_HELP)
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help=f"override a scenario field; {SET_VALUES}")
     parser.add_argument("--speed", type=float, default=1.0, help="loop time per wall-clock time (default 1.0)")
 
 
-def live_scenario(args: argparse.Namespace):
-    """The scenario of ``serve``/``tune``: a built-in robot with a controller file, or a scenario."""
-    from jointctl.scenario.spec import builtin_robots, load_scenario, scenario_for_robot
+def target_scenario(args: argparse.Namespace, *, default_controllers: str = "position", robot_defaults=(),
+                    robot_overrides=(), extra_overrides=(), say: bool = True):
+    """The scenario of a command's ``target`` (a robot or a scenario, see
+    :mod:`jointctl.scenario.targets`), after saying on stderr what the target was taken for (unless
+    ``say`` is false). ``extra_overrides`` follow the user's ``--set`` (a command's own, e.g. gains
+    under test)."""
+    from jointctl.scenario.targets import resolve_target
 
+    if args.target is None:
+        raise JointCtlError("is required: a robot or a scenario (only --hardware ros reads the served model)",
+                            field="target")
+    target = resolve_target(args.target, controllers=getattr(args, "controllers", None),
+                            default_controllers=default_controllers, overrides=[*args.overrides, *extra_overrides],
+                            robot_defaults=robot_defaults, robot_overrides=robot_overrides)
+    if say:
+        print(f"jointctl: {target.taken_as}", file=sys.stderr)
+    return target.scenario
+
+
+def live_scenario(args: argparse.Namespace):
+    """The scenario of ``serve``/``tune``/``controller``: a robot with a controller file, or a scenario."""
     positive_speed(args)
-    if args.target in builtin_robots():
-        default = ("servo" if args.command == "controller"
-                   else "industrial" if getattr(args, "hardware", "sim") == "industrial" else "position")
-        return scenario_for_robot(args.target, args.controllers or default, args.overrides)
-    return load_scenario(args.target, args.overrides)
+    default = ("servo" if args.command == "controller"
+               else "industrial" if getattr(args, "hardware", "sim") == "industrial" else "position")
+    return target_scenario(args, default_controllers=default)
 
 
 def industrial_hardware(args: argparse.Namespace, scenario):

@@ -6,17 +6,25 @@ import argparse
 import sys
 from pathlib import Path
 
-from jointctl.cli.common import SET_VALUES, positive_speed
+from jointctl.cli.common import (CONTROLLERS_HELP, SET_VALUES, TARGET_HELP, positive_speed, say_warnings,
+                                 target_scenario)
 from jointctl.errors import JointCtlError
 from jointctl.recording.metrics_file import metrics_json
+
+
+#: How long ``run`` holds a robot given as its target [s].
+ROBOT_RUN_S = 5.0
 
 
 def add_parsers(sub) -> None:
     listing = sub.add_parser("list", help="list built-in robots and scenarios")
     listing.set_defaults(handler=_list)
 
-    run = sub.add_parser("run", help="run a scenario and write trace.csv, metrics.json and figures")
-    run.add_argument("scenario", help="a built-in scenario name or a scenario YAML file")
+    run = sub.add_parser("run", help="run a scenario (or hold a robot for a while) and write trace.csv, "
+                                     "metrics.json and figures")
+    run.add_argument("target", metavar="scenario", help=f"{TARGET_HELP}; a robot is held where its controllers "
+                                                        f"start for {ROBOT_RUN_S:g} s (--set duration_s=...)")
+    run.add_argument("--controllers", default=None, help=CONTROLLERS_HELP)
     run.add_argument("--out", type=Path, help="output folder (default: out/<scenario name>)")
     run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scenario field, e.g. gravity=-5 or "
@@ -57,10 +65,9 @@ def _list(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from jointctl.scenario.run import run_scenario
-    from jointctl.scenario.spec import load_scenario
 
     positive_speed(args)
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario = target_scenario(args, robot_defaults=[f"duration_s={ROBOT_RUN_S}"])
     out = args.out or Path("out") / scenario.name
     if args.view:
         from jointctl.visuals.viewer import check_display
@@ -70,6 +77,7 @@ def _run(args: argparse.Namespace) -> int:
                            package_path=tuple(args.package_path), video=_video_settings(args), view=args.view)
     shown = {k: v for k, v in metrics.items() if k not in ("plant",)}
     print(metrics_json(shown))
+    say_warnings(metrics)
     print(f"wrote {out}/", file=sys.stderr)
     return 0
 

@@ -91,12 +91,12 @@ class LoopModel:
         """The sampled plant (A, B), the closed loop (A, B, C) on states (q, q̇[, e_last][, integral])
         and the loop's gain on the plant state, K(z) = (p + i·h·z/(z-1))·C + D (the loop broken at
         the plant input; derivative on error adds ``d·(1 - 1/z)/h`` to the error's gain instead of D)."""
-        import control
+        from scipy.linalg import expm
 
         h, m, b = self.period_s, self.mass, self.damping
-        plant = control.ss([[0.0, 1.0], [0.0, -b / m]], [[0.0], [1.0 / m]], np.eye(2), np.zeros((2, 1)))
-        sampled = control.c2d(plant, h, method="zoh")
-        a, bu = np.asarray(sampled.A), np.asarray(sampled.B)
+        # Zero-order hold: exp([[A, B], [0, 0]]·h) = [[Ad, Bd], [0, I]] (the effort held over a period).
+        held = expm(np.array([[0.0, 1.0, 0.0], [0.0, -b / m, 1.0 / m], [0.0, 0.0, 0.0]]) * h)
+        a, bu = held[:2, :2], held[:2, 2:]
         c = np.array([[1.0, 0.0]]) if self.loop == "position" else np.array([[0.0, 1.0]])
         dv = np.array([[0.0, self.d]]) if self.loop == "position" else np.zeros((1, 2))
         kp = self.p + self.i * h  # the PID adds i·h·e to its integral before using it

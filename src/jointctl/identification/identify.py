@@ -11,7 +11,9 @@ to the start and the identification is refused saying what, where and when. The 
 excitation's cycles at the actuator's effort or velocity limit is measured (``excitation.saturation``
 in the metrics); above ``saturation_share`` (1 %) nothing is fitted.
 The recorded position, velocity and applied effort are fitted by
-:func:`~jointctl.identification.plant_fit.fit_plant`. On hardware that servos the joint itself (a
+:func:`~jointctl.identification.plant_fit.fit_plant`, after subtracting the load the other joints'
+recorded motion puts on the joint, computed from the robot's model
+(:mod:`~jointctl.identification.coupling`). On hardware that servos the joint itself (a
 robot another node serves on the ROS graph) :func:`identify_servoed` sends the same chirp to the
 joint's position loop and fits the states as they arrived; :func:`identify_states` fits states
 recorded elsewhere (a rosbag), :func:`identify_trace` a ``trace.csv``.
@@ -20,9 +22,13 @@ Outputs (``out_dir``): ``trace.csv`` (robot runs), ``identify_<joint>.png`` (mea
 against the fitted model's, and the position) and ``metrics.json``: ``mass_kg`` /
 ``damping_n_s_m`` / ``friction_n`` / ``gravity_load_n`` on a prismatic joint,
 ``inertia_kg_m2`` / ``damping_n_m_s_rad`` / ``friction_n_m`` / ``gravity_sin_n_m`` /
-``gravity_cos_n_m`` on a revolute one, each with ``*_ci95``, and the fit's residual. ``metrics.json`` is
-strict JSON: a figure that is not a finite number (not measured, or unbounded) is ``null``
-(:mod:`jointctl.recording.metrics_file`).
+``gravity_cos_n_m`` on a revolute one, each with ``*_ci95``, and the fit's residual; ``coupling``
+("model" or "none": states of one joint only) and ``coupling_rms`` [N or N·m], with ``coupling_pose``
+(the others' positions the inertia is for) and the model's own ``model_inertia_kg_m2`` / ``model_mass_kg``
+there; ``data``: samples received, given to the fit and fitted, the gaps cut (``at_s``, ``length_s``),
+``span_s``, ``usable_s`` and ``share_used`` (of the recording; ``excitation_share_used`` of the
+excitation). ``metrics.json`` is strict JSON: a figure that is not a finite number (not measured, or
+unbounded) is ``null`` (:mod:`jointctl.recording.metrics_file`).
 """
 
 from __future__ import annotations
@@ -34,10 +40,11 @@ import numpy as np
 
 from jointctl.control.joint_controllers import JointPositionController, derivative_law
 from jointctl.errors import ConfigError
+from jointctl.identification.coupling import Coupling, chain_coupling
 from jointctl.identification.excitation import Chirp, plan_identification
 from jointctl.identification.frequency_response import held_reference, servo_reference, session_gravity
-from jointctl.identification.plant_fit import (IdentificationError, PlantFit, accelerations, fit_plant,
-                                               resample_uniform)
+from jointctl.identification.plant_fit import (MIN_SAMPLES, IdentificationError, PlantFit, difference_rows,
+                                               fit_plant, resample_uniform, stretches)
 from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Guard, Safety, SaturationMonitor, run_guarded,
                                             saturation_text)
 from jointctl.scenario.session import Session
@@ -76,10 +83,10 @@ def identify_in_session(session, joint: str, *, out_dir: str | Path | None = Non
                           "excitation (use a position controller file)", field="--joint", value=joint)
     hardware = session.hardware
     index = hardware.joint_index(joint)
-    samples: list[tuple[float, float, float, float]] = []
+    samples: list[tuple] = []
 
-    def record(time_s: float) -> None:
-        samples.append((time_s, hardware.position[index], hardware.velocity[index], hardware.effort[index]))
+    def record(time_s: float) -> None:  # every joint: the others' motion loads this one
+        samples.append((time_s, tuple(hardware.position), tuple(hardware.velocity), hardware.effort[index]))
 
     session.loop.add_observer(record)
     try:
@@ -88,9 +95,13 @@ def identify_in_session(session, joint: str, *, out_dir: str | Path | None = Non
                              start=controller.reference_input[0])
     finally:
         session.loop.remove_observer(record)
-    t, q, qd, u = (np.array(column) for column in zip(*samples))
-    fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction)
-    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u)
+    t, q_all, qd_all, u = (np.array(column) for column in zip(*samples))
+    q, qd = q_all[:, index], qd_all[:, index]
+    coupling = chain_coupling(session.robot, joint, hardware.joint_names, t, q_all, qd_all,
+                              gravity_m_s2=session.manager.context.gravity_m_s2)
+    fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction,
+                    coupling_torque=coupling.torque, inertia_scale=coupling.inertia_scale)
+    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u, coupling)
 
 
 def identify_servoed(session: Session, joint: str, *, out_dir: str | Path | None = None,
@@ -113,14 +124,27 @@ def identify_servoed(session: Session, joint: str, *, out_dir: str | Path | None
     excitation = _excite(session, joint, set_reference, amplitude=amplitude, duration_s=duration_s,
                          f_start_hz=f_start_hz, f_end_hz=f_end_hz, safety=safety, plant=plant,
                          start=held_reference(hardware, joint))
-    fit, t, q, qd, u = _fit_states(*hardware.recorded(joint), session.robot.joint(joint).type,
-                                   loop_period_s=session.loop.period_s, fit_friction=fit_friction)
-    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u)
+    stamps, positions, velocities, efforts = hardware.recorded_all(joint)
+    if len(stamps) < MIN_SAMPLES:
+        raise IdentificationError(f"too few joint states to fit (at least {MIN_SAMPLES})", field="samples",
+                                  value=len(stamps))
+    k, n = hardware.joint_index(joint), len(hardware.joint_names)
+    # Every joint's states on the grid (the chain's motion loads this joint), the joint's effort beside them.
+    t, *columns = resample_uniform(np.asarray(stamps, dtype=float) - stamps[0], *np.asarray(positions).T,
+                                   *np.asarray(velocities).T, np.asarray([row[k] for row in efforts], dtype=float))
+    q_all, qd_all, u = np.column_stack(columns[:n]), np.column_stack(columns[n:2 * n]), columns[-1]
+    acceleration = differences_for(t, session.loop.period_s)
+    coupling = chain_coupling(session.robot, joint, hardware.joint_names, t, q_all, qd_all,
+                              gravity_m_s2=session.scenario.gravity_m_s2, acceleration=acceleration)
+    q, qd = q_all[:, k], qd_all[:, k]
+    fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction,
+                    acceleration=acceleration, coupling_torque=coupling.torque, inertia_scale=coupling.inertia_scale)
+    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u, coupling, received=len(stamps))
 
 
 def differences_for(t: np.ndarray, loop_period_s: float) -> str:
     """"forward" for samples of every control period of a loop of ``loop_period_s``, else "central"."""
-    return "forward" if t[1] - t[0] < 1.5 * loop_period_s else "central"
+    return "forward" if stretches(t).dt < 1.5 * loop_period_s else "central"
 
 
 def identify_states(stamps, q, qd, u, joint: str, joint_type: str, *, source: str, loop_period_s: float = 0.001,
@@ -130,8 +154,8 @@ def identify_states(stamps, q, qd, u, joint: str, joint_type: str, *, source: st
     :func:`differences_for` picks for a loop of ``loop_period_s``. ``source`` names where they came from."""
     fit, t, q, qd, u = _fit_states(stamps, q, qd, u, joint_type, loop_period_s=loop_period_s,
                                    fit_friction=fit_friction)
-    metrics = _metrics(fit, joint)
-    metrics.update(trace=source, sample_period_s=float(t[1] - t[0]))
+    metrics = _metrics(fit, joint, received=len(stamps))
+    metrics.update(trace=source, sample_period_s=stretches(t).dt)
     if out_dir is not None:
         _write(out_dir, joint, fit, metrics, t, q, qd, u)
     return fit, metrics
@@ -230,16 +254,23 @@ def loop_settings(session, joint: str) -> tuple[dict | None, str, bool, float | 
     return None, "error", False, None
 
 
-def _finish(fit: PlantFit, joint: str, excitation: tuple[Chirp, float, float, dict], out_dir, t, q, qd, u) -> dict:
+def _finish(fit: PlantFit, joint: str, excitation: tuple[Chirp, float, float, dict], out_dir, t, q, qd, u,
+            coupling: Coupling | None = None, *, received: int | None = None) -> dict:
     chirp, lower, upper, report = excitation
-    metrics = _metrics(fit, joint)
+    metrics = _metrics(fit, joint, received=len(t) if received is None else received)
+    start = t[0] + SETTLE_S  # the excitation's window, and the share of it the gaps left
+    lost = sum(max(0.0, min(at + length, start + chirp.duration_s) - max(at, start)) for at, length in fit.gaps)
+    metrics["data"]["excitation_share_used"] = 1.0 - lost / chirp.duration_s
+    if coupling is not None:
+        metrics["coupling_pose"] = coupling.pose
+        metrics["model_mass_kg" if fit.joint_type == "prismatic" else "model_inertia_kg_m2"] = coupling.model_inertia
     metrics["excitation"] = {"amplitude": chirp.amplitude, "f_start_hz": chirp.f_start_hz,
                              "f_end_hz": chirp.f_end_hz, "duration_s": chirp.duration_s, "start": chirp.start,
                              "position_min": float(q.min()), "position_max": float(q.max()),
                              "rest_before": float(q[t - t[0] <= SETTLE_S][-1]), "rest_after": float(q[-1]),
                              "lower": lower, "upper": upper, **report}
     if out_dir is not None:
-        _write(out_dir, joint, fit, metrics, t, q, qd, u)
+        _write(out_dir, joint, fit, metrics, t, q, qd, u, coupling)
     return metrics
 
 
@@ -265,7 +296,7 @@ def identify_trace(path: str | Path, joint: str, joint_type: str, *, out_dir: st
     return fit, metrics
 
 
-def _metrics(fit: PlantFit, joint: str) -> dict:
+def _metrics(fit: PlantFit, joint: str, *, received: int | None = None) -> dict:
     prismatic = fit.joint_type == "prismatic"
     unit = {"inertia": "mass_kg" if prismatic else "inertia_kg_m2",
             "damping": "damping_n_s_m" if prismatic else "damping_n_m_s_rad",
@@ -281,20 +312,30 @@ def _metrics(fit: PlantFit, joint: str) -> dict:
         metrics["gravity_sin_n_m"] = fit.gravity_sin
         metrics["gravity_cos_n_m"] = fit.gravity_cos
     metrics.update(residual_rms=fit.residual_rms, r_squared=fit.r_squared, samples=fit.samples,
-                   effort_shift_cycles=fit.effort_shift_cycles)
+                   effort_shift_cycles=fit.effort_shift_cycles, coupling=fit.coupling,
+                   coupling_rms=fit.coupling_rms)
+    metrics["data"] = {"samples_received": fit.samples_given if received is None else int(received),
+                       "samples_given": fit.samples_given, "samples_fitted": fit.samples,
+                       "gaps_cut": [{"at_s": at, "length_s": length} for at, length in fit.gaps],
+                       "span_s": fit.span_s, "usable_s": fit.usable_s, "share_used": fit.share_used}
     return metrics
 
 
-def _write(out_dir, joint, fit: PlantFit, metrics: dict, t, q, qd, u) -> None:
+def _write(out_dir, joint, fit: PlantFit, metrics: dict, t, q, qd, u, coupling: Coupling | None = None) -> None:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    dt = float(np.median(np.diff(t)))
+    split = stretches(t)
     shift = fit.effort_shift_cycles
-    at, qdd = accelerations(qd, dt, shift, fit.acceleration)
-    predicted = fit.effort(q[at], qd[at], qdd)
+    at, qdd = difference_rows(split.index, qd, split.dt, shift, fit.acceleration)
     effort_unit = "N" if fit.joint_type == "prismatic" else "N·m"
-    plot_series(out / f"identify_{joint}.png", t[at], {"measured effort": u[at.start + shift:at.stop + shift],
-                                                       "identified model": predicted},
+    series = {"measured effort": u[at + shift]}
+    if coupling is None:
+        series["identified model"] = fit.effort(q[at], qd[at], qdd)
+    else:  # the joint's own model plus the others' load computed from the robot's model
+        load = np.nan_to_num(coupling.torque[at])
+        series["identified model + coupling"] = fit.effort(q[at], qd[at], coupling.inertia_scale[at] * qdd) + load
+        series["coupling (robot model)"] = load
+    plot_series(out / f"identify_{joint}.png", t[at], series,
                 title=f"{joint}: measured effort against the identified model (R² {fit.r_squared:.5f})",
                 ylabel=f"effort [{effort_unit}]")
     plot_series(out / f"identify_{joint}_position.png", t, {"position": q},

@@ -19,6 +19,24 @@ states at 50 Hz, a bag) take ``acceleration="central"``: ``(qd[k+1] - qd[k-1]) /
 the sample whose position, speed and effort it is matched with (a forward difference there would
 sit half a sample late); :func:`resample_uniform` first puts such samples on a uniform grid.
 
+Gaps: samples lost on the way (a dropped message, a 10 ms hiccup of a busy machine) are cut out, not
+invented. A step between samples longer than ``GAP_STEPS`` sampling periods (one lost sample is
+enough: interpolating across it would make up the motion there, (ω·h)²/8 of a swing at frequency ω
+over a gap h) splits the samples into stretches; differences are taken inside a stretch only (no
+difference spans a gap, nor does an effort shift), and the rows of every stretch go into one fit.
+The fit reports what it used (``samples_given``, ``samples``, ``gaps`` with their times and lengths,
+``usable_s`` of ``span_s``) and refuses only when fewer than ``MIN_SAMPLES`` rows are left, saying
+how much time was usable.
+
+A joint of a chain: the other joints' motion loads the joint through the inertia matrix (their
+accelerations, the Coriolis and centrifugal products of their speeds) and shifts its gravity. A
+caller that knows that load (:mod:`jointctl.identification.coupling`, from the robot's model) gives it
+as ``coupling_torque``, subtracted from the effort before the fit, and gives
+``inertia_scale = M_ii(q) / M_ii(q̄)`` when the joint's own inertia changes with the others' pose:
+the inertia column becomes ``inertia_scale · qdd`` and ``inertia`` is the joint's inertia at the pose
+``q̄``, ``gravity(q)`` the joint's gravity load with the others at ``q̄`` (``coupling`` in the result
+says "model"; ``coupling_rms`` the load's RMS over the fitted rows).
+
 A simulated joint integrated with implicit damping (MuJoCo's Euler) shows an inertia larger by
 ``dt·damping`` (0.01 kg for the 1-DOF robot at 1 kHz: 1 %); the fit reports what the joint does.
 """
@@ -35,6 +53,13 @@ from jointctl.errors import JointCtlError
 
 #: Samples slower than this fraction of the peak speed are left out (friction's sign undefined there).
 MOVING_FRACTION = 0.1
+#: A step between samples longer than this many sampling periods is a gap: samples were lost there.
+#: One lost sample makes a step of two periods; jitter of a stamp up to half a period is not a gap.
+GAP_STEPS = 1.5
+#: Fewest rows (samples whose differences lie inside one stretch) a fit takes.
+MIN_SAMPLES = 50
+#: Fewest of them where the joint moves.
+MIN_MOVING = 20
 #: 95 % two-sided normal quantile.
 Z95 = 1.959963984540054
 
@@ -51,8 +76,13 @@ class PlantFit:
     ``friction`` (Coulomb) [N or N·m]; ``gravity_load`` [N] (prismatic, the constant load) or
     ``gravity_sin``/``gravity_cos`` [N·m] (revolute: the load is ``sin·sin(q) + cos·cos(q)``);
     ``*_ci95`` their 95 % half-widths; ``residual_rms`` [N or N·m]; ``r_squared`` of the fit;
-    ``samples`` used; ``effort_shift_cycles`` the effort's alignment kept; ``acceleration`` the
-    differences used ("forward" or "central")."""
+    ``samples`` used (the rows of the least squares: where the joint moves, differences inside one
+    stretch); ``effort_shift_cycles`` the effort's alignment kept; ``acceleration`` the differences used
+    ("forward" or "central"). The data: ``samples_given`` samples in the fit's input, ``span_s`` [s] the
+    time they span, ``usable_s`` [s] the time of the stretches left after cutting ``gaps`` (each
+    ``(at_s, length_s)``: the time of the last sample before it and the step across it [s]). The chain:
+    ``coupling`` "model" when the other joints' load was subtracted (see the module docstring), "none"
+    when not; ``coupling_rms`` [N or N·m] that load's RMS over the fitted rows."""
 
     joint_type: str
     inertia: float
@@ -70,6 +100,17 @@ class PlantFit:
     samples: int
     effort_shift_cycles: int
     acceleration: str = "forward"
+    samples_given: int = 0
+    span_s: float = 0.0
+    usable_s: float = 0.0
+    gaps: tuple[tuple[float, float], ...] = ()
+    coupling: str = "none"
+    coupling_rms: float = 0.0
+
+    @property
+    def share_used(self) -> float:
+        """The share of the recording's time left in the fit's stretches (1 without gaps)."""
+        return self.usable_s / self.span_s if self.span_s > 0 else 0.0
 
     def gravity(self, q: ArrayLike) -> np.ndarray:
         """The identified gravity load at positions ``q``."""
@@ -89,35 +130,131 @@ class PlantFit:
 
 
 def resample_uniform(time_s: ArrayLike, *columns: ArrayLike) -> tuple[np.ndarray, ...]:
-    """``(t, *columns)`` linearly interpolated onto a uniform grid at the median step of ``time_s``
-    (for samples that arrived over a network, where one may be late or lost). Refused when a gap
-    exceeds five steps: interpolation there would invent motion."""
+    """``(t, *columns)`` linearly interpolated onto a uniform grid at the period of ``time_s`` [s]
+    (:func:`sampling_period`; for samples that arrived over a network, stamped a little off their
+    period). A step longer than ``GAP_STEPS`` periods (samples lost) is not interpolated across: the
+    samples are split there and each stretch gets its own grid (at its stamps' median phase), so ``t``
+    jumps across the gap and :func:`fit_plant` cuts it. Interpolation only puts jittered stamps on the
+    grid; it never invents motion."""
     t = np.asarray(time_s, dtype=float)
     if t.size < 2:
-        raise IdentificationError("too few samples to fit (at least 50)", field="samples", value=int(t.size))
+        raise IdentificationError(f"too few samples to fit (at least {MIN_SAMPLES})", field="samples",
+                                  value=int(t.size))
     order = np.argsort(t, kind="stable")
     t = t[order]
     keep = np.concatenate([[True], np.diff(t) > 0])
     t = t[keep]
     steps = np.diff(t)
-    dt = float(np.median(steps)) if steps.size else 0.0
+    dt = sampling_period(steps) if steps.size else 0.0
     if not dt > 0:
         raise IdentificationError("the samples' time stamps do not advance", field="time_s", value=dt)
-    if steps.max() > 5 * dt:
-        at = float(t[int(np.argmax(steps))])
-        raise IdentificationError(f"a gap of {steps.max():.3g} s in the samples at t = {at:.3f} s (median step "
-                                  f"{dt:.3g} s): samples were lost", field="time_s", value=float(steps.max()))
-    grid = t[0] + dt * np.arange(int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
-    return (grid, *(np.interp(grid, t, np.asarray(c, dtype=float)[order][keep]) for c in columns))
+    values = [np.asarray(c, dtype=float)[order][keep] for c in columns]
+    cuts = np.concatenate([[0], np.nonzero(steps > GAP_STEPS * dt)[0] + 1, [t.size]])
+    grids, parts = [], [[] for _ in values]
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        # The stretch's grid: its stamps' typical phase (the median offset from whole periods after its
+        # first), from the grid point nearest its first stamp to the one nearest its last, and still a
+        # gap (more than GAP_STEPS periods) after the grid before it.
+        since = t[a:b] - t[a]
+        start = t[a] + float(np.median(since - dt * np.round(since / dt)))
+        grid = start + dt * np.arange(round((t[a] - start) / dt), round((t[b - 1] - start) / dt) + 1)
+        if grids:
+            grid = grid[grid - grids[-1][-1] > GAP_STEPS * dt * (1 + 1e-9)]
+        if not grid.size:
+            continue
+        grids.append(grid)
+        for part, column in zip(parts, values):
+            part.append(np.interp(grid, t[a:b], column[a:b]))
+    return (np.concatenate(grids), *(np.concatenate(part) for part in parts))
+
+
+def sampling_period(steps: np.ndarray) -> float:
+    """The period [s] of samples ``steps`` apart: their median step, or, when most steps are gaps
+    (longer than ``GAP_STEPS`` times the shortest), the median of the others."""
+    dt = float(np.median(steps))
+    shortest = float(steps.min())
+    if dt > GAP_STEPS * shortest:
+        dt = float(np.median(steps[steps <= GAP_STEPS * shortest]))
+    return dt
+
+
+@dataclass(frozen=True)
+class Stretches:
+    """Samples split at their gaps: ``dt`` [s] the sampling period, ``index`` the stretch of every
+    sample (0, 1, ...), ``gaps`` ``(at_s, length_s)`` of each cut, ``span_s`` and ``usable_s`` [s]
+    (the time the samples span, ``dt`` more than last minus first, and that less the time lost in
+    the gaps: each gap's step less one period)."""
+
+    dt: float
+    index: np.ndarray
+    gaps: tuple[tuple[float, float], ...]
+    span_s: float
+    usable_s: float
+
+    def describe(self) -> str:
+        """How much is left, e.g. ``0.8 s of 10 s usable after cutting 3 gaps``."""
+        n = len(self.gaps)
+        return f"{self.usable_s:.3g} s of {self.span_s:.3g} s usable after cutting {n} gap{'s' * (n != 1)}"
+
+
+def stretches(time_s: ArrayLike) -> Stretches:
+    """Split ``time_s`` [s] (increasing) at its gaps (steps longer than ``GAP_STEPS`` periods, the
+    period from :func:`sampling_period`); every other step must be the period (within 1e-6 of it,
+    relative): IdentificationError otherwise."""
+    t = np.asarray(time_s, dtype=float)
+    steps = np.diff(t)
+    if steps.size == 0 or not steps.min() > 0:
+        raise IdentificationError("samples must be uniformly spaced in time (record every cycle)", field="time_s",
+                                  value=f"steps from {steps.min() if steps.size else math.nan:g} s")
+    dt = sampling_period(steps)
+    gap = steps > GAP_STEPS * dt
+    uneven = ~gap & (np.abs(steps - dt) > 1e-6 * dt + 1e-9)
+    if uneven.any():
+        raise IdentificationError("samples must be uniformly spaced in time (record every cycle)",
+                                  field="time_s", value=f"steps from {steps.min():g} to {steps.max():g} s")
+    at = np.nonzero(gap)[0]
+    index = np.concatenate([[0], np.cumsum(gap)])
+    span = float(t[-1] - t[0] + dt)
+    return Stretches(dt, index, tuple((float(t[k]), float(steps[k])) for k in at), span,
+                     span - float(np.sum(steps[at] - dt)))
+
+
+def difference_rows(index: np.ndarray, qd: np.ndarray, dt: float, shift: int,
+                    acceleration: str) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, accelerations there): the samples whose velocity difference (``acceleration``:
+    "forward" ``(qd[k+1] - qd[k]) / dt``, "central" ``(qd[k+1] - qd[k-1]) / 2dt``) and effort ``shift``
+    cycles later lie inside one stretch (``index``: the stretch of every sample, :func:`stretches`).
+    ``qd`` may hold one column per joint (N x n)."""
+    first = 0 if acceleration == "forward" else 1
+    reach = max(1, shift)
+    k = np.arange(first, index.size - reach)
+    rows = k[index[k - first] == index[k + reach]]
+    if acceleration == "forward":
+        return rows, (qd[rows + 1] - qd[rows]) / dt
+    return rows, (qd[rows + 1] - qd[rows - 1]) / (2 * dt)
+
+
+def accelerations(qd: np.ndarray, dt: float, shift: int, acceleration: str) -> tuple[slice, np.ndarray]:
+    """(the samples the differences belong to, the accelerations there) for an effort shift of
+    ``shift``, on samples without gaps (see :func:`difference_rows` for samples with gaps)."""
+    n = qd.size - 1 - shift
+    if acceleration == "forward":
+        return slice(0, n), (qd[1:n + 1] - qd[:n]) / dt
+    return slice(1, n), (qd[2:n + 1] - qd[:n - 1]) / (2 * dt)
 
 
 def fit_plant(time_s: ArrayLike, position: ArrayLike, velocity: ArrayLike, effort: ArrayLike, *,
               joint_type: str, max_shift_cycles: int = 2, fit_friction: bool = True,
-              acceleration: str = "forward") -> PlantFit:
-    """Fit the joint model of the module docstring to uniformly sampled ``time_s`` [s], ``position``,
-    ``velocity`` and ``effort``. ``joint_type``: ``"prismatic"``, ``"revolute"`` or
-    ``"continuous"``; ``acceleration``: ``"forward"`` or ``"central"`` differences (see the module
-    docstring). Raises :class:`IdentificationError` when the data cannot identify it."""
+              acceleration: str = "forward", coupling_torque: ArrayLike | None = None,
+              inertia_scale: ArrayLike | None = None) -> PlantFit:
+    """Fit the joint model of the module docstring to ``time_s`` [s], ``position``, ``velocity`` and
+    ``effort`` sampled at a uniform period, with gaps cut out (see the module docstring).
+    ``joint_type``: ``"prismatic"``, ``"revolute"`` or ``"continuous"``; ``acceleration``:
+    ``"forward"`` or ``"central"`` differences. ``coupling_torque`` [N or N·m] (the other joints' load
+    on this one, per sample, computed with the same differences; NaN where undefined) and
+    ``inertia_scale`` (``M_ii(q) / M_ii(q̄)`` per sample) come from
+    :mod:`jointctl.identification.coupling`. Raises :class:`IdentificationError` when the data cannot
+    identify it."""
     if joint_type not in ("prismatic", "revolute", "continuous"):
         raise IdentificationError("must be prismatic, revolute or continuous", field="joint_type", value=joint_type)
     if acceleration not in ("forward", "central"):
@@ -126,15 +263,21 @@ def fit_plant(time_s: ArrayLike, position: ArrayLike, velocity: ArrayLike, effor
     if not (t.ndim == q.ndim == qd.ndim == u.ndim == 1 and t.size == q.size == qd.size == u.size):
         raise IdentificationError("time, position, velocity and effort must be 1-D and of one length",
                                   field="samples", value=[x.size for x in (t, q, qd, u)])
-    if t.size < 50:
-        raise IdentificationError("too few samples to fit (at least 50)", field="samples", value=int(t.size))
+    if t.size < 2:
+        raise IdentificationError(f"too few samples to fit (at least {MIN_SAMPLES})", field="samples",
+                                  value=int(t.size))
     if not all(np.isfinite(x).all() for x in (t, q, qd, u)):
         raise IdentificationError("the trace holds non-finite values", field="samples", value="nan/inf")
-    steps = np.diff(t)
-    dt = float(np.median(steps))
-    if not dt > 0 or np.max(np.abs(steps - dt)) > 1e-6 * max(dt, 1e-9) + 1e-9:
-        raise IdentificationError("samples must be uniformly spaced in time (record every cycle)",
-                                  field="time_s", value=f"steps from {steps.min():g} to {steps.max():g} s")
+    coupling = _per_sample(coupling_torque, t.size, "coupling_torque")
+    scale = _per_sample(inertia_scale, t.size, "inertia_scale")
+    split = stretches(t)
+    rows, _ = difference_rows(split.index, qd, split.dt, 0, acceleration)
+    if rows.size < MIN_SAMPLES:
+        if split.gaps:
+            raise IdentificationError(f"only {split.describe()}: need at least {MIN_SAMPLES} samples inside "
+                                      f"unbroken stretches, {rows.size} left", field="samples", value=int(rows.size))
+        raise IdentificationError(f"too few samples to fit (at least {MIN_SAMPLES})", field="samples",
+                                  value=int(t.size))
     peak = float(np.max(np.abs(qd)))
     travel = float(np.ptp(q))
     if peak < 1e-6 or travel < 1e-6:
@@ -143,29 +286,34 @@ def fit_plant(time_s: ArrayLike, position: ArrayLike, velocity: ArrayLike, effor
                                   field="velocity", value=peak)
     best = None
     for shift in range(max_shift_cycles + 1):
-        fit = _fit_with_shift(t, q, qd, u, dt, shift, joint_type, peak, fit_friction, acceleration)
+        fit = _fit_with_shift(q, qd, u, split, shift, joint_type, peak, fit_friction, acceleration, coupling,
+                              scale)
         if best is None or fit.residual_rms < best.residual_rms:
             best = fit
     return best
 
 
-def accelerations(qd: np.ndarray, dt: float, shift: int, acceleration: str) -> tuple[slice, np.ndarray]:
-    """(the samples the differences belong to, the accelerations there) for an effort shift of ``shift``."""
-    n = qd.size - 1 - shift
-    if acceleration == "forward":
-        return slice(0, n), (qd[1:n + 1] - qd[:n]) / dt
-    return slice(1, n), (qd[2:n + 1] - qd[:n - 1]) / (2 * dt)
+def _per_sample(values, n: int, name: str) -> np.ndarray | None:
+    if values is None:
+        return None
+    a = np.asarray(values, dtype=float)
+    if a.shape != (n,):
+        raise IdentificationError(f"must hold one value per sample ({n})", field=name, value=list(a.shape))
+    return a
 
 
-def _fit_with_shift(t, q, qd, u, dt, shift, joint_type, peak, fit_friction, acceleration) -> PlantFit:
-    at, qdd = accelerations(qd, dt, shift, acceleration)
-    q0, qd0 = q[at], qd[at]
-    u0 = u[at.start + shift:at.stop + shift]
-    moving = np.abs(qd0) > MOVING_FRACTION * peak
-    if moving.sum() < 20:
-        raise IdentificationError("too few samples where the joint moves", field="velocity",
+def _fit_with_shift(q, qd, u, split: Stretches, shift, joint_type, peak, fit_friction, acceleration,
+                    coupling, scale) -> PlantFit:
+    rows, qdd = difference_rows(split.index, qd, split.dt, shift, acceleration)
+    q0, qd0, u0 = q[rows], qd[rows], u[rows + shift]
+    load = np.zeros(rows.size) if coupling is None else coupling[rows]
+    inertia_column = qdd if scale is None else scale[rows] * qdd
+    moving = (np.abs(qd0) > MOVING_FRACTION * peak) & np.isfinite(load) & np.isfinite(inertia_column)
+    if moving.sum() < MIN_MOVING:
+        left = f" ({split.describe()})" if split.gaps else ""
+        raise IdentificationError(f"too few samples where the joint moves{left}", field="velocity",
                                   value=int(moving.sum()))
-    columns = [qdd, qd0]
+    columns = [inertia_column, qd0]
     names = ["inertia", "damping"]
     if fit_friction:
         columns.append(np.sign(qd0))
@@ -177,12 +325,12 @@ def _fit_with_shift(t, q, qd, u, dt, shift, joint_type, peak, fit_friction, acce
         columns += [np.sin(q0), np.cos(q0)]
         names += ["gravity_sin", "gravity_cos"]
     a = np.column_stack(columns)[moving]
-    b = u0[moving]
-    scale = np.linalg.norm(a, axis=0)
-    if np.any(scale == 0) or np.linalg.cond(a / scale) > 1e8:
+    b = (u0 - load)[moving]
+    norm = np.linalg.norm(a, axis=0)
+    if np.any(norm == 0) or np.linalg.cond(a / norm) > 1e8:
         raise IdentificationError("the motion does not separate inertia, damping, friction and gravity "
                                   "(excite the joint with changing speed, in both directions)", field="samples",
-                                  value=f"condition number {np.linalg.cond(a / np.where(scale == 0, 1, scale)):.3g}")
+                                  value=f"condition number {np.linalg.cond(a / np.where(norm == 0, 1, norm)):.3g}")
     x, *_ = np.linalg.lstsq(a, b, rcond=None)
     residual = b - a @ x
     dof = max(len(b) - len(x), 1)
@@ -202,7 +350,11 @@ def _fit_with_shift(t, q, qd, u, dt, shift, joint_type, peak, fit_friction, acce
         residual_rms=math.sqrt(float(residual @ residual) / len(b)),
         r_squared=1.0 - float(residual @ residual) / total if total > 0 else 1.0,
         samples=int(len(b)), effort_shift_cycles=shift, acceleration=acceleration,
+        samples_given=int(q.size), span_s=split.span_s, usable_s=split.usable_s, gaps=split.gaps,
+        coupling="none" if coupling is None else "model",
+        coupling_rms=0.0 if coupling is None else float(np.sqrt(np.mean(load[moving] ** 2))),
     )
 
 
-__all__ = ["IdentificationError", "PlantFit", "accelerations", "fit_plant", "resample_uniform"]
+__all__ = ["GAP_STEPS", "IdentificationError", "MIN_SAMPLES", "PlantFit", "Stretches", "accelerations",
+           "difference_rows", "fit_plant", "resample_uniform", "sampling_period", "stretches"]

@@ -54,14 +54,18 @@ class AnalysisError(JointCtlError, ValueError):
     code = "analysis"
 
 
-class _Result:
-    """Mixin: JSON-ready dict of a dataclass of floats (None stays None)."""
+class NoOscillation(AnalysisError):
+    """A step response that does not overshoot: nothing for the second-order fit to fit."""
 
-    def as_dict(self) -> dict[str, float | int | None]:
-        out: dict[str, float | int | None] = {}
+
+class _Result:
+    """Mixin: JSON-ready dict of a dataclass of floats (None, ints and notes stay as they are)."""
+
+    def as_dict(self) -> dict[str, float | int | str | None]:
+        out: dict[str, float | int | str | None] = {}
         for f in fields(self):  # type: ignore[arg-type]
             value = getattr(self, f.name)
-            if value is None or isinstance(value, int):
+            if value is None or isinstance(value, (int, str)):
                 out[f.name] = value
             else:
                 out[f.name] = float(value)
@@ -103,6 +107,9 @@ class StepResponse(_Result):
     final_value: float
     fit_window_s: float
     fit_rms_error: float
+    #: Why ωn and ζ are NaN (None when they were fitted): a response that does not overshoot
+    #: (an overdamped loop, or ζ above about 0.9) has no oscillation to fit.
+    fit_note: str | None = None
 
 
 @dataclass(frozen=True)
@@ -249,7 +256,7 @@ def _initial_guess(
     if idx and idx[-1] == e.size - 1:
         idx, sgn = idx[:-1], sgn[:-1]
     if not idx:
-        raise AnalysisError(
+        raise NoOscillation(
             "no overshoot detected after the step: the underdamped second-order fit "
             "needs an oscillating response (is the loop overdamped, or the record too short?)"
         )
@@ -391,8 +398,14 @@ def step_response(
         frac = (e[i] - level) / (e[i] - e[i + 1])
         settling_time_s = float(tau[i] + frac * (tau[i + 1] - tau[i]))
 
-    # Fit the damped oscillation.
-    sigma0, omega_d0 = _initial_guess(tau, e, step_abs, direction, noise)
+    # Fit the damped oscillation (none to fit without an overshoot: the read-off figures stand alone).
+    try:
+        sigma0, omega_d0 = _initial_guess(tau, e, step_abs, direction, noise)
+    except NoOscillation as exc:
+        return StepResponse(natural_frequency_rad_s=math.nan, damping_ratio=math.nan, overshoot_pct=overshoot_pct,
+                            settling_time_s=settling_time_s, steady_state_error=c_final - y_final,
+                            rise_time_s=t90 - t10, peak_time_s=peak_time_s, initial_value=y_initial,
+                            final_value=y_final, fit_window_s=0.0, fit_rms_error=math.nan, fit_note=exc.message)
     window = fit_window_s if fit_window_s is not None else _ENVELOPE_TIME_CONSTANTS / sigma0
     if window <= 0:
         raise AnalysisError("fit_window_s must be positive", value=fit_window_s)

@@ -128,14 +128,24 @@ class ServedRobotHardware(HardwareInterface):
         """(stamp [s], position, velocity, effort) of ``joint`` in every joint state kept since
         :meth:`start_recording`; recording stops."""
         k = self.joint_index(joint)
+        stamps, positions, velocities, efforts = self.recorded_all(joint)
+        return stamps, [r[k] for r in positions], [r[k] for r in velocities], [r[k] for r in efforts]
+
+    def recorded_all(self, joint: str) -> tuple[list[float], list[tuple], list[tuple], list[tuple]]:
+        """(stamp [s], positions, velocities, efforts) of every joint state kept since
+        :meth:`start_recording`, each a row of the joints in :attr:`joint_names`' order (the chain's
+        motion, which loads ``joint``); recording stops. Refused when a state lacks the joints'
+        velocities or ``joint``'s effort (identification needs them)."""
+        k = self.joint_index(joint)
         with self._lock:
             rows, self._recording = self._recording or [], None
-        for quantity, column in (("velocity", 2), ("effort", 3)):
-            if any(r[column][k] is None for r in rows):
+        for quantity, missing in (("velocity", lambda r: any(v is None for v in r[2])),
+                                  ("effort", lambda r: r[3][k] is None)):
+            if any(missing(r) for r in rows):
                 raise JointCtlError(f"the joint states carry no {quantity} for every joint: identification "
                                     "needs position, velocity and the effort applied",
                                     field=f"/{self.namespace}/joint_states", value=quantity)
-        return ([r[0] for r in rows], [r[1][k] for r in rows], [r[2][k] for r in rows], [r[3][k] for r in rows])
+        return [r[0] for r in rows], [r[1] for r in rows], [r[2] for r in rows], [r[3] for r in rows]
 
     def read(self) -> None:
         with self._lock:
@@ -245,6 +255,38 @@ def served_controllers(namespace: str, joint_names: Sequence[str]) -> dict[str, 
     return found
 
 
+def served_description(namespace: str | None = None) -> tuple[str, str]:
+    """(URDF text, parameter name) of the served robot's model: ``/<namespace>/robot_description``
+    when there is one, else ``/robot_description`` (where ``jointctl serve`` and ros_control's
+    launch files load it); a ConfigError when neither is set."""
+    from jointctl.ros.clients import init_client_node
+
+    init_client_node("jointctl_tools")
+    names = ([f"/{namespace.strip('/')}/robot_description"] if namespace else []) + ["/robot_description"]
+    for name in names:
+        if rospy.has_param(name):
+            text = rospy.get_param(name)
+            if isinstance(text, str) and text.strip():
+                return text, name
+    raise ConfigError("no robot model on the parameter server (is the robot served?); give its .urdf/.xacro or "
+                      "robot folder as the target", field="robot_description", value=" or ".join(names))
+
+
+def served_namespaces(joint_names: Sequence[str]) -> list[str]:
+    """The namespaces on the parameter server that hold joint loops (``LOOP_TYPES``) of any of
+    ``joint_names``: where a served robot's controllers are (``one_DOF_robot`` for the chapter's)."""
+    from jointctl.ros.clients import init_client_node
+
+    init_client_node("jointctl_tools")
+    tree = rospy.get_param("/")
+    found = []
+    for ns, body in (tree.items() if isinstance(tree, dict) else ()):
+        if isinstance(body, dict) and any(isinstance(c, dict) and c.get("type") in LOOP_TYPES
+                                          and c.get("joint") in joint_names for c in body.values()):
+            found.append(ns)
+    return sorted(found)
+
+
 def connect(namespace: str, joint_names: Sequence[str], controller: str | None = None, *,
             joint: str | None = None) -> tuple[ServedRobotHardware, str]:
     """Join the graph and return (hardware, controller name) for ``controller``, or for ``joint``'s
@@ -286,4 +328,5 @@ def set_point(namespace: str, controller: str, timeout_s: float = 2.0) -> float 
     return float(msg.set_point)
 
 
-__all__ = ["LOOP_TYPES", "ServedRobotHardware", "connect", "served_controllers"]
+__all__ = ["LOOP_TYPES", "ServedRobotHardware", "connect", "served_controllers", "served_description",
+           "served_namespaces"]

@@ -65,6 +65,14 @@ class RobotFiles:
     folder: Path
     #: The manifest's other sections (``serve``: defaults for ``jointctl serve``; ``ros``: actions).
     extras: dict[str, Any] = field(default_factory=dict)
+    #: The robot.yaml it was read from (None for a bare description).
+    manifest: Path | None = None
+
+    @property
+    def reference(self) -> str:
+        """What a scenario's ``robot:`` field says to name this robot again: the manifest's or the
+        description's absolute path."""
+        return str(self.manifest or self.description)
 
 
 @dataclass(frozen=True)
@@ -293,7 +301,7 @@ class _Validator:
         path = (self.base / ref).resolve()
         if path.is_dir() and (path / "robot.yaml").is_file():
             return read_robot_manifest(path / "robot.yaml")
-        if path.is_file() and path.name == "robot.yaml":
+        if path.is_file() and path.suffix in (".yaml", ".yml"):
             return read_robot_manifest(path)
         if path.is_file() and path.suffix in _DESCRIPTION_SUFFIXES:
             return RobotFiles(path.stem, path, {}, path.parent)
@@ -336,30 +344,43 @@ def read_robot_manifest(path: Path) -> RobotFiles:
                               field=f"controllers.{key}", value=rel)
         files[str(key)] = (folder / rel).resolve()
     extras = {k: v for k, v in raw.items() if k not in ("description", "controllers")}
-    return RobotFiles(folder.name, (folder / desc).resolve(), files, folder.resolve(), extras)
+    return RobotFiles(folder.name, (folder / desc).resolve(), files, folder.resolve(), extras, path.resolve())
 
 
-def scenario_for_robot(robot: str, controllers: str, overrides: Iterable[str] = ()) -> Scenario:
-    """A scenario that brings up a built-in robot with every controller of one of its controller
-    files (as the chapter's launch files do), at the manifest's ``serve`` defaults, until stopped."""
-    robots = builtin_robots()
-    if robot not in robots:
-        raise ConfigError(f"no such robot (built-in: {', '.join(robots)})", field="robot", value=robot)
-    files = read_robot_manifest(robots[robot] / "robot.yaml")
-    if controllers not in files.controller_files:
+def scenario_for_robot(robot: str | RobotFiles, controllers: str, overrides: Iterable[str] = ()) -> Scenario:
+    """A scenario that brings up a robot (a built-in name, or its files) with every controller of one
+    of its controller files (a manifest key or a YAML path), as the chapter's launch files do, at the
+    manifest's ``serve`` defaults, until stopped."""
+    if isinstance(robot, RobotFiles):
+        files = robot
+    else:
+        robots = builtin_robots()
+        if robot not in robots:
+            raise ConfigError(f"no such robot (built-in: {', '.join(robots)})", field="robot", value=robot)
+        files = read_robot_manifest(robots[robot] / "robot.yaml")
+    if controllers in files.controller_files:
+        controller_path = files.controller_files[controllers]
+    elif Path(controllers).is_absolute() and Path(controllers).is_file():
+        controller_path = Path(controllers)
+    else:
         raise ConfigError(f"the robot has no such controller file (it has: {', '.join(files.controller_files)})",
                           field="--controllers", value=controllers)
-    tree = read_yaml(files.controller_files[controllers])
+    tree = read_yaml(controller_path)
+    if not isinstance(tree, dict):
+        raise ConfigError("must map controller names (under one namespace) to their parameters",
+                          source=str(controller_path), value=tree)
     body = next(iter(tree.values())) if len(tree) == 1 and all(isinstance(v, dict) and "type" not in v
                                                                for v in tree.values()) else tree
     defaults = files.extras.get("serve") or {}
+    name = robot if isinstance(robot, str) else files.name
     raw = {
-        "name": f"{robot}_{controllers}", "robot": robot, "controller_file": controllers,
-        "start_controllers": [name for name, c in body.items() if isinstance(c, dict) and "type" in c],
+        "name": f"{name}_{controller_path.stem if controllers not in files.controller_files else controllers}",
+        "robot": robot if isinstance(robot, str) else files.reference, "controller_file": str(controllers),
+        "start_controllers": [key for key, c in body.items() if isinstance(c, dict) and "type" in c],
         "gravity": defaults.get("gravity", -9.81), "initial_positions": defaults.get("initial_positions", {}),
         "duration_s": 1e9, "record": {"every": 1},
     }
     for item in overrides:
         key, value = parse_override(item)
         set_dotted(raw, key, value, source="--set")
-    return _Validator(raw, str(files.folder / "robot.yaml"), files.folder).scenario()
+    return _Validator(raw, str(files.manifest or controller_path), files.folder).scenario()

@@ -3,8 +3,11 @@
 A scenario's ``analysis`` names one of :data:`ANALYSES`. Each analysis reads the trace, writes PNG
 figures into the output folder and returns the metrics (measured figures plus an ``expected``
 mapping of the same keys computed from the model: moving mass, joint damping, controller gains,
-gravity). Each experiment's analysis is the module beside it; what they share is
-:mod:`jointctl.scenario.analyses.common`.
+gravity; None, with the reason in ``not_applicable``, where the theory does not hold). Each
+experiment's analysis is the module beside it; what they share is
+:mod:`jointctl.scenario.analyses.common`. Every analysis ends with ``warnings``
+(:mod:`jointctl.scenario.analyses.checks`): figures that miss their expectation or the scenario's
+``analysis.spec`` by more than their margin, and joints whose effort sat at its limit.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from typing import Any
 
 from jointctl.errors import ConfigError
 from jointctl.scenario.analyses.arm import analyse_arm_pose
+from jointctl.scenario.analyses.checks import add_warnings, check_spec
 from jointctl.scenario.analyses.common import analysed_joint
 from jointctl.scenario.analyses.drop_weight import analyse_drop_weight
 from jointctl.scenario.analyses.minimal_robot import analyse_minimal_robot_trajectory
@@ -43,7 +47,8 @@ ANALYSES: dict[str, tuple[Analysis, bool]] = {
 
 
 def check_analysis(session: Session) -> Analysis | None:
-    """The scenario's analysis function, checked before the run starts."""
+    """The scenario's analysis function, checked before the run starts; its metrics end with
+    ``warnings``."""
     spec = session.scenario.analysis
     if spec is None:
         return None
@@ -54,7 +59,12 @@ def check_analysis(session: Session) -> Analysis | None:
     analyse, names_a_joint = entry
     if names_a_joint:
         analysed_joint(session, spec)
-    return analyse
+    check_spec(session, spec)
+
+    def analyse_and_warn(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
+        return add_warnings(session, trace, params, analyse(session, trace, out, params))
+
+    return analyse_and_warn
 
 
 __all__ = ["ANALYSES", "Analysis", "check_analysis"]

@@ -10,6 +10,7 @@ import numpy as np
 from scipy.optimize import fsolve
 
 from jointctl.errors import ConfigError
+from jointctl.metrics.expectations import share_of
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.analyses.common import rms_tracking_error, run_variant
 from jointctl.scenario.session import Session
@@ -56,7 +57,11 @@ def analyse_arm_pose(session: Session, trace: Trace, out: Path, params: dict[str
         sag = np.array([droop.joint(j, "position")[-1] for j in joints]) - target
         metrics["uncompensated_droop_rad"] = float(np.max(np.abs(sag)))
         metrics["uncompensated_droop_by_joint_rad"] = sag.tolist()
-        metrics["expected_uncompensated_droop_by_joint_rad"] = static_droop(session, joints, target).tolist()
+        expected = static_droop(session, joints, target)
+        metrics["expected_uncompensated_droop_by_joint_rad"] = expected.tolist()
+        metrics["expected"] = {"uncompensated_droop_by_joint_rad": expected.tolist()}
+        metrics["margins"] = {"uncompensated_droop_by_joint_rad": share_of(float(np.max(np.abs(expected))),
+                                                                           "largest droop")}
         figures.plot_series(out / "uncompensated_droop.png", droop.time_s,
                             {j: droop.joint(j, "position") for j in joints},
                             title=f"{name}: holding the pose without gravity compensation",

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from jointctl.metrics.expectations import share_of
 from jointctl.scenario.analyses.common import (
     CONTACT_THRESHOLD_N,
     STEADY_WINDOW_S,
@@ -51,6 +52,7 @@ def analyse_drop_weight(session: Session, trace: Trace, out: Path, params: dict[
             "steady_sensor_force_z_n": -(weight.mass_kg + plate) * g,
             "steady_position_m": float(trace.joint(joint, "reference")[-1]) - expected_effort / plant.kp,
         },
+        "margins": {"steady_position_m": share_of(expected_effort / plant.kp, "sag")},
         "plant": plant.__dict__,
     }
     name = session.scenario.name

@@ -43,6 +43,7 @@ import numpy as np
 
 from jointctl.control.joint_controllers import wrap_angle
 from jointctl.errors import ConfigError, ControllerError
+from jointctl.metrics.expectations import share_of
 from jointctl.model.mjcf import rpy_to_matrix
 from jointctl.model.robot_model import RobotModel
 from jointctl.scenario.session import Session
@@ -386,6 +387,10 @@ def analyse_minimal_robot_trajectory(session: Session, trace: Trace, out: Path,
             "tracking_lag_s": model_lag,
             "rms_tracking_error_rad": float(np.sqrt(np.mean((command - model)[tracking] ** 2))),
         },
+        # Rest angles: a share of the sag the theory predicts at that pose.
+        "margins": {"hold_position_rad": share_of(hold_command - hold_pose, "sag"),
+                    **{key: share_of(final_command - final_pose, "sag")
+                       for key in ("final_position_rad", "final_rest_position_rad", "steady_state_error_rad")}},
     }
     _figures(session.scenario.name, out, joint, t, command, position, model, effort, points_t, points_q,
              final_pose, start, end)

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from jointctl.errors import ConfigError
+from jointctl.metrics.expectations import share_of
 from jointctl.scenario.analyses.common import (
     CONTACT_THRESHOLD_N,
     STEADY_WINDOW_S,
@@ -177,6 +178,9 @@ def analyse_nac_drop(session: Session, trace: Trace, out: Path, params: dict[str
                          for key, value in rates.items())
         series[f"{label}: {held}"] = run.joint(joint, "position")
     metrics["expected"] = expected
+    # Rest positions: a share of the sag the load causes (loaded minus unloaded rest).
+    sag = abs(expected["rest_position_loaded_m"] - expected["rest_position_unloaded_m"])
+    metrics["margins"] = {key: share_of(sag, "sag") for key in expected if "rest_position" in key}
     name = session.scenario.name
     figures.plot_series(out / "position.png", t, series, title=f"{name}: {joint} position",
                         ylabel="position [m]")

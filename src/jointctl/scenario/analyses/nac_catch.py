@@ -11,6 +11,7 @@ import numpy as np
 
 from jointctl.control.cartesian_admittance_controller import CartesianAdmittanceController
 from jointctl.errors import ConfigError
+from jointctl.metrics.expectations import share_of
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.analyses.common import (
     CONTACT_THRESHOLD_N,
@@ -82,6 +83,7 @@ def analyse_nac_catch(session: Session, trace: Trace, out: Path, params: dict[st
         "weight_on_plate": on_plate,
         "expected": {"flange_rest_position_m": expected_rest.tolist(),
                      "sag_m": float(expected_sag)},
+        "margins": {key: share_of(expected_sag, "sag") for key in ("flange_rest_position_m", "sag_m")},
     }
     _plot(out, session.scenario.name, nac, chapter_damping, main, chapter)
     return metrics

@@ -1,0 +1,276 @@
+"""What a position loop's step should do, from the robot model, and where that theory stops.
+
+**Signs.** The robot moves as ``M(q)·q̈ + b·q̇ + τ_hold(q) = τ``: ``τ_hold(q)`` is the effort that
+holds the pose still against gravity (MuJoCo's inverse dynamics at rest, the bias force;
+:meth:`~jointctl.model.dynamics.RobotDynamics.gravity_at_pose`), i.e. minus the torque (force)
+gravity applies to the joint, ``τ_g = -τ_hold``. The loop gives ``τ = Kp·(r - q) - Kd·q̇`` (a
+derivative on the measured speed; on the error it is the same after the step's first cycle, which
+adds the kick ``Kd·Δr/h``); gravity feed-forward adds ``τ_hold(q)`` of the measured pose.
+
+**Rest.** The analysed joint ``j`` rests, with the other joints at the pose they end the run in,
+where the P loop balances the holding effort::
+
+    Kp·(r - q*) = τ_hold(q*)        (0 on the right with gravity feed-forward)
+
+solved numerically (a bracketing root search over half a turn each side of ``r`` for a revolute
+joint, Newton's method for a prismatic one, whose holding effort does not change with its own
+position). The steady-state error is ``e_ss = r - q* = τ_hold(q*)/Kp``: positive when the joint
+must push towards +q to hold (the 1-DOF piston under gravity, ``m·g/Kp``), negative when gravity
+pulls it past its reference.
+
+**About the rest.** With ``q = q* + x``, ``I·ẍ = -Kp·x - (b + Kd)·ẋ - (∂τ_hold/∂q)·x``: the loop is a
+spring-damper of stiffness ``k = Kp + ∂τ_hold/∂q = Kp - ∂τ_g/∂q`` [N/m or N·m/rad], inertia
+``I = M_jj(q*)`` and damping ``b + Kd``, so ``ωn = √(k/I)`` and ``ζ = (b + Kd)/(2·√(k·I))``
+(``held_*``: the other joints held rigidly). The other joints are held by loops of their own,
+coupled to this one through ``M`` and gravity: all of them are linearised together
+(:func:`jointctl.metrics.linear_loops.linear_step`: ``K = diag(Kp) + ∂τ_hold/∂q``, a row without
+gravity for a joint with gravity feed-forward, ``D = diag(b + Kd)``), and the expected ωn, ζ and
+overshoot are those of the mode that dominates the analysed joint's response. With one joint, or
+stiff enough neighbours, that is ``√(k/I)``. The inertia is ``M_jj`` without the ``h·b`` that
+MuJoCo's implicit damping adds to it: the effort held over each loop period takes about half of that
+back, and the sampled loop's ωn is that of ``M_jj + h·b/2`` to 0.05 % (0.25 % below the continuous
+figure on the 1-DOF robot), well inside the ωn margin.
+
+**Not applicable.** Expectations are None, with the reason, where the linear theory does not
+describe the run: the joint's loop is not a position loop, its controller integrates the error
+(third order, resting at the reference only once the integral has caught up), the effort sat at its
+limit after the step (the transient figures; the steady-state error too if it still does at the
+end; or another joint's effort did, its loop being part of the model), the rest lies beyond the
+joint's range or needs more than its effort limit, the linearised loops are unstable or overdamped
+(no oscillation whose ωn a fit could recover), or another mode carries more than
+:data:`MODE_SHARE_LIMIT` of the joint's response. Not modelled, and not detected: friction the
+URDF lacks, the other joints' integrators (their slow action left out), a step so large that the
+gravity stiffness changes much over it (the theory linearises about the final pose).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import brentq
+
+from jointctl.control.joint_controllers import (DERIVATIVE_ERROR, JointPositionController,
+                                                JointVelocityController)
+from jointctl.hardware.interface import EFFORT
+from jointctl.metrics.expectations import saturation_share
+from jointctl.metrics.linear_loops import linear_step
+from jointctl.model.dynamics import RobotDynamics
+from jointctl.recording.trace import Trace
+from jointctl.scenario.session import Session
+
+#: Another mode whose RMS part of the joint's response exceeds this share of the dominant mode's
+#: makes the response two damped sinusoids, which a fit of one describes by neither.
+MODE_SHARE_LIMIT = 0.25
+#: Step of the central differences of the holding efforts [m or rad]: the efforts are smooth
+#: (sinusoids of the angles), so the difference's error is ~1e-12 of the derivative.
+DIFFERENCE_STEP = 1e-6
+#: Points of the search for the rest of a revolute joint over half a turn each side of its reference.
+REST_SEARCH_POINTS = 721
+#: The final pose of every joint: the mean of the last 10 % of the record, as the step analysis'
+#: final value.
+FINAL_SHARE = 0.1
+
+TRANSIENT = ("natural_frequency_rad_s", "damping_ratio", "overshoot_pct")
+STEADY = "steady_state_error"
+
+
+@dataclass
+class StepTheory:
+    """Expected step figures of one joint (None where not applicable, ``not_applicable`` saying
+    why) and how they were reached: ``rest_position`` q* [m or rad], ``holding_effort`` τ_hold(q*)
+    [N or N·m], ``gravity_stiffness`` ∂τ_hold/∂q at q* [N/m or N·m/rad], ``stiffness`` k,
+    ``inertia`` M_jj(q*) [kg or kg·m²], ``held_*`` the figures with the other joints held rigidly,
+    ``modes`` the coupled loops' modes (ωn [rad/s], ζ, share of the joint's response), dominant
+    first, ``saturated_share_after_step`` of the cycles after the step at the effort limit."""
+
+    expected: dict[str, float | None] = field(default_factory=dict)
+    not_applicable: dict[str, str] = field(default_factory=dict)
+    details: dict = field(default_factory=dict)
+
+    def skip(self, keys, reason: str) -> None:
+        """Mark ``keys`` not applicable for ``reason`` (the first reason given stays)."""
+        for key in keys:
+            self.expected[key] = None
+            self.not_applicable.setdefault(key, reason)
+
+
+def loop_controller(session: Session, joint: str):
+    """The running controller that writes ``joint``'s effort, or None."""
+    return next((c for c in session.manager.active if (joint, EFFORT) in c.claimed_interfaces()), None)
+
+
+def final_pose(session: Session, trace: Trace) -> np.ndarray:
+    """Every hardware joint's mean position over the last :data:`FINAL_SHARE` of the record."""
+    n_tail = max(1, int(math.ceil(FINAL_SHARE * trace.time_s.size)))
+    return np.array([float(np.mean(trace.joint(j, "position")[-n_tail:])) for j in session.hardware.joint_names])
+
+
+def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float) -> StepTheory:
+    """The expected steady-state error, ωn, ζ and overshoot of ``joint``'s step at ``step_time_s``
+    (see the module docstring), with the reasons where they do not apply."""
+    theory = StepTheory({key: None for key in (*TRANSIENT, STEADY)})
+    spec = session.robot.joint(joint)
+    unit = "N" if spec.is_prismatic else "N·m"
+    limit = spec.limits.effort if spec.limits is not None and spec.limits.effort > 0 else math.inf
+    t = trace.time_s
+    effort = trace.joint(joint, "effort")
+    n_tail = max(1, int(math.ceil(FINAL_SHARE * t.size)))
+    share_after = saturation_share(effort[t >= step_time_s], limit)
+    share_end = saturation_share(effort[-n_tail:], limit)
+    theory.details["saturated_share_after_step"] = share_after
+    controller = loop_controller(session, joint)
+    if not isinstance(controller, JointPositionController):
+        what = ("a velocity loop" if isinstance(controller, JointVelocityController)
+                else "no loop" if controller is None else type(controller).__name__)
+        theory.skip((*TRANSIENT, STEADY), f"{joint} is driven by {what}, not a position loop")
+        return theory
+    gains = controller.pid.gains
+    if gains.i > 0:
+        theory.skip((*TRANSIENT, STEADY), f"the controller integrates the error (i = {gains.i:g}): the loop is "
+                                          "third order and rests at its reference once the integral has caught "
+                                          "up, which this theory does not model")
+        return theory
+    if share_after > 0:
+        theory.skip(TRANSIENT, f"the effort sat at its {limit:g} {unit} limit in {100 * share_after:.3g} % of the "
+                               "cycles after the step: the loop was not linear")
+    for other in session.hardware.joint_names:  # the other joints' loops are part of the linear model
+        limits = session.robot.joint(other).limits
+        other_limit = limits.effort if limits is not None and limits.effort > 0 else math.inf
+        other_share = saturation_share(trace.joint(other, "effort")[t >= step_time_s], other_limit)
+        if other != joint and other_share > 0:
+            other_unit = "N" if session.robot.joint(other).is_prismatic else "N·m"
+            theory.skip(TRANSIENT, f"{other}'s effort sat at its {other_limit:g} {other_unit} limit in "
+                                   f"{100 * other_share:.3g} % of the cycles after the step: the coupled loops were "
+                                   "not linear")
+    if share_end > 0:
+        theory.skip((STEADY,), f"the effort is at its {limit:g} {unit} limit at the end of the run: the loop "
+                               "does not hold a rest")
+
+    names = session.hardware.joint_names
+    j = names.index(joint)
+    reference = trace.joint(joint, "reference")
+    r = float(reference[-1])
+    before = np.flatnonzero(t < step_time_s)
+    r0 = float(reference[before[-1]]) if before.size else r
+    pose = final_pose(session, trace)
+    dynamics = RobotDynamics(session.robot, session.scenario.gravity_m_s2, joints=names)
+    feedforward = "gravity" in controller.feedforward_terms
+
+    def holding(q: float) -> float:
+        pose[j] = q
+        dynamics.set_pose(pose, inertia=False)
+        return float(dynamics.gravity_at_pose()[j]) if not feedforward else 0.0
+
+    kp = gains.p
+    try:
+        rest = _rest(lambda q: kp * (r - q) - holding(q), r, spec.is_prismatic,
+                     lambda q: (holding(q + DIFFERENCE_STEP) - holding(q - DIFFERENCE_STEP)) / (2 * DIFFERENCE_STEP)
+                     + kp)
+    except ValueError as exc:
+        theory.skip((*TRANSIENT, STEADY), str(exc))
+        return theory
+    hold = holding(rest)
+    theory.details.update(rest_position=rest, holding_effort=hold)
+    lower = spec.limits.lower if spec.limits is not None and spec.limits.lower is not None else -math.inf
+    upper = spec.limits.upper if spec.limits is not None and spec.limits.upper is not None else math.inf
+    if spec.type != "continuous" and not lower <= rest <= upper:
+        theory.skip((*TRANSIENT, STEADY), f"the loop would rest at {rest:.4g}, beyond the joint's range "
+                                          f"[{lower:g}, {upper:g}]: it rests on its limit")
+    elif abs(hold) >= limit:
+        theory.skip((*TRANSIENT, STEADY), f"holding the rest takes {abs(hold):.4g} {unit}, more than the joint's "
+                                          f"{limit:g} {unit} limit")
+    if STEADY not in theory.not_applicable:
+        theory.expected[STEADY] = r - rest
+
+    # The linearised loops of every joint about the final pose, the analysed one at its rest.
+    pose[j] = rest
+    dynamics.set_pose(pose)
+    mass = dynamics.mass_matrix()
+    stiffness, damping = _loops(session, dynamics, pose)
+    gravity_stiffness = float(stiffness[j, j] - kp)
+    inertia = float(mass[j, j])
+    k = kp + gravity_stiffness
+    c = float(damping[j, j])
+    theory.details.update(gravity_stiffness=gravity_stiffness, stiffness=k, inertia=inertia,
+                          damping=c, kp=kp, kd=gains.d, step=r - r0)
+    if k > 0:
+        theory.details.update(held_natural_frequency_rad_s=math.sqrt(k / inertia),
+                              held_damping_ratio=c / (2 * math.sqrt(k * inertia)))
+    kick = gains.d if controller.derivative == DERIVATIVE_ERROR else 0.0
+    try:
+        response = linear_step(mass, stiffness, damping, j, kp, kick)
+    except ValueError as exc:
+        theory.skip(TRANSIENT, f"about the rest pose: {exc}")
+        return theory
+    theory.details["modes"] = [{"natural_frequency_rad_s": m.natural_frequency_rad_s,
+                                "damping_ratio": m.damping_ratio, "share": m.share} for m in response.modes]
+    if not response.oscillating:
+        theory.skip(TRANSIENT[:2], "the joint's response is overdamped: no oscillation to fit an ωn and ζ to")
+    if response.second_share > MODE_SHARE_LIMIT:
+        theory.skip(TRANSIENT[:2], f"a second mode carries {100 * response.second_share:.3g} % of the joint's "
+                                   f"response (more than {100 * MODE_SHARE_LIMIT:g} %): no single ωn and ζ")
+    for key, value in zip(TRANSIENT, (response.natural_frequency_rad_s, response.damping_ratio,
+                                      response.overshoot_pct)):
+        if key not in theory.not_applicable:
+            theory.expected[key] = float(value)
+    return theory
+
+
+def _rest(residual, reference: float, prismatic: bool, slope) -> float:
+    """The q where ``residual(q) = Kp·(r - q) - τ_hold(q)`` vanishes nearest the reference, with a
+    positive stiffness ``slope(q)`` (a stable rest): Newton's method for a prismatic joint, a
+    bracketing search over half a turn each side of the reference for a revolute one."""
+    if prismatic:
+        q = reference
+        for _ in range(20):
+            k = slope(q)
+            if not k > 0:
+                break
+            step = residual(q) / k
+            q += step
+            if abs(step) <= 1e-14 * max(1.0, abs(q)):
+                return q
+        raise ValueError("the position loop finds no stable rest (its gain does not exceed the change of the "
+                         "holding effort)")
+    grid = np.linspace(reference - math.pi, reference + math.pi, REST_SEARCH_POINTS)
+    values = np.array([residual(q) for q in grid])
+    # Stable rests: the residual falls through zero (the stiffness -d(residual)/dq is positive).
+    crossings = np.flatnonzero((values[:-1] > 0) & (values[1:] <= 0))
+    if crossings.size == 0:
+        raise ValueError("the position loop finds no stable rest within half a turn of its reference (its "
+                         "gain does not exceed the change of the holding effort)")
+    roots = [brentq(residual, grid[i], grid[i + 1], xtol=1e-15, rtol=4 * np.finfo(float).eps)
+             if values[i + 1] != 0 else float(grid[i + 1]) for i in crossings]
+    return float(min(roots, key=lambda q: abs(q - reference)))
+
+
+def _loops(session: Session, dynamics: RobotDynamics, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Stiffness ``K`` and damping ``D`` (n x n) of every joint's loop at ``pose``: a position loop
+    gives ``Kp`` and ``Kd`` (an integral's slow action left out), a velocity loop its gain as
+    damping, no loop nothing; ``K`` adds ``∂τ_hold/∂q`` (central differences), but for the rows of
+    joints with gravity feed-forward."""
+    names = session.hardware.joint_names
+    n = len(names)
+    gravity = np.zeros((n, n))
+    for col in range(n):
+        shifted = pose.copy()
+        shifted[col] += DIFFERENCE_STEP
+        dynamics.set_pose(shifted, inertia=False)
+        up = dynamics.gravity_at_pose().copy()
+        shifted[col] -= 2 * DIFFERENCE_STEP
+        dynamics.set_pose(shifted, inertia=False)
+        gravity[:, col] = (up - dynamics.gravity_at_pose()) / (2 * DIFFERENCE_STEP)
+    dynamics.set_pose(pose)
+    kp, kd = np.zeros(n), dynamics.damping.copy()
+    for i, name in enumerate(names):
+        controller = loop_controller(session, name)
+        if isinstance(controller, JointPositionController):
+            kp[i] = controller.pid.gains.p
+            kd[i] += controller.pid.gains.d
+            if "gravity" in controller.feedforward_terms:
+                gravity[i, :] = 0.0
+        elif isinstance(controller, JointVelocityController):
+            kd[i] += controller.pid.gains.p
+    return np.diag(kp) + gravity, np.diag(kd)

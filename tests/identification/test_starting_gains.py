@@ -1,0 +1,89 @@
+"""Starting gains from a user's model: each driven joint's inertia and gravity load at home (checked
+against the planar arm's closed forms), a loop that holds the load within half a step and whose step
+fits the effort limit, and the cases that cannot be met named."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from jointctl.errors import ConfigError
+from jointctl.identification.frequency_response import LoopModel
+from jointctl.identification.starting_gains import (EFFORT_FRACTION, SAG_FRACTION, home_pose, starting_gains)
+from jointctl.model.loader import load_robot_model
+from tests import planar_arm
+
+
+@pytest.fixture
+def arm(tmp_path):
+    return load_robot_model(planar_arm.write_urdf(tmp_path))
+
+
+def test_the_plant_at_home_is_the_planar_arms_closed_form(arm) -> None:
+    loops = {loop.joint: loop for loop in starting_gains(arm)}
+    assert list(loops) == ["shoulder", "elbow"] and home_pose(arm) == {"shoulder": 0.0, "elbow": 0.0}
+    assert loops["shoulder"].inertia == pytest.approx(planar_arm.shoulder_inertia_kg_m2(0.0), rel=1e-3)
+    assert loops["elbow"].inertia == pytest.approx(planar_arm.elbow_inertia_kg_m2(), rel=1e-3)
+    for name, load in planar_arm.gravity_loads_n_m().items():
+        assert loops[name].gravity_load == pytest.approx(load, rel=1e-3)
+        assert loops[name].damping == planar_arm.DAMPING[name]
+        assert loops[name].effort_limit == planar_arm.EFFORT[name]
+
+
+def test_every_loop_holds_its_load_and_its_step_fits_the_effort_limit(arm) -> None:
+    for loop in starting_gains(arm, bandwidth_hz=2.0):
+        p, d = loop.gains["p"], loop.gains["d"]
+        assert loop.gravity_load / p <= SAG_FRACTION * loop.step * (1 + 1e-6)  # the sag
+        assert p * loop.step + loop.gravity_load <= EFFORT_FRACTION * loop.effort_limit * (1 + 1e-6)
+        assert p > 0 and d > 0 and loop.gains["i"] == 0.0
+        # 2 Hz is too soft to hold these loads: raised, and said.
+        assert loop.bandwidth_hz > 2.0 and "raised from 2" in loop.note
+
+
+def test_a_loop_stiff_enough_already_keeps_the_bandwidth_asked(arm) -> None:
+    elbow = starting_gains(arm, bandwidth_hz=12.0)[1]
+    assert elbow.bandwidth_hz == 12.0 and elbow.note == ""
+    # The design's own promise, on its model: the closed loop's -3 dB point at 12 Hz.
+    model = LoopModel(elbow.inertia, elbow.damping, elbow.gains["p"], 0.0, elbow.gains["d"], 0.001, "position",
+                      "error")
+    gain, _ = model.response([12.0])
+    assert gain[0] == pytest.approx(-3.0103, abs=0.01)
+
+
+def test_a_fast_spec_is_lowered_to_what_the_effort_limit_allows(arm) -> None:
+    shoulder = starting_gains(arm, bandwidth_hz=40.0)[0]
+    assert shoulder.bandwidth_hz < 40.0 and "lowered from 40" in shoulder.note
+    need = shoulder.gains["p"] * shoulder.step + shoulder.gravity_load
+    assert need == pytest.approx(EFFORT_FRACTION * shoulder.effort_limit, rel=0.05)
+
+
+def test_a_weak_motor_sags_and_says_by_how_much(tmp_path) -> None:
+    text = planar_arm.urdf_text().replace('effort="60.0"', 'effort="18.0"')
+    (tmp_path / "weak.urdf").write_text(text)
+    shoulder = starting_gains(load_robot_model(tmp_path / "weak.urdf"))[0]
+    sag = shoulder.gravity_load / shoulder.gains["p"]
+    assert sag > SAG_FRACTION * shoulder.step and f"sags {sag:.3g}" in shoulder.note
+
+
+@pytest.mark.parametrize("change, fragments", [
+    (('effort="60.0"', 'effort="12.0"'), ["gravity load", "effort limit 12", "joint shoulder"]),
+    (("<transmission", "<!-- <transmission"), ["transmission", "EffortJointInterface"]),
+])
+def test_what_cannot_be_met_is_refused(tmp_path, change, fragments) -> None:
+    text = planar_arm.urdf_text().replace(*change)
+    if change[1].startswith("<!--"):
+        text = text.replace("</transmission>", "</transmission> -->")
+    (tmp_path / "bad.urdf").write_text(text)
+    with pytest.raises(ConfigError) as caught:
+        starting_gains(load_robot_model(tmp_path / "bad.urdf"))
+    for fragment in fragments:
+        assert fragment in str(caught.value), str(caught.value)
+
+
+@pytest.mark.parametrize("kwargs, field", [({"bandwidth_hz": -1.0}, "--bandwidth-hz"), ({"zeta": 1.2}, "--zeta"),
+                                           ({"zeta": math.nan}, "--zeta")])
+def test_bad_specs_are_refused(arm, kwargs, field) -> None:
+    with pytest.raises(ConfigError) as caught:
+        starting_gains(arm, **kwargs)
+    assert caught.value.field == field
