@@ -200,3 +200,31 @@ def test_an_amplitude_beyond_the_safe_one_names_the_binding_limit() -> None:
     _, effort = continuous(20.0)
     named = float(str(info.value).split("at most ")[1].split()[0])
     assert named == pytest.approx((20.0 - WEIGHT) / effort, rel=SAMPLED) and "at 20 Hz" in str(info.value)
+
+
+def test_a_velocity_loops_way_back_drives_the_joint_to_where_it_started() -> None:
+    """A stop in a velocity loop: its reference fades out while 1/s times the position error, capped at the
+    speed budget, brings the joint back. Here the joint follows its velocity reference exactly (an ideal
+    loop, 1 ms steps): from 0.3 rad off, the capped return (0.1 rad/s, half of 0.2) then the exponential
+    one (1/s) come back within 1 % of the room, and the guard calls it at rest once the speed has stayed
+    under 1 % of the room a second for 0.5 s."""
+    from jointctl.identification.safety import Envelope, Guard
+
+    class Joint:
+        position, velocity, effort = [0.0], [0.0], [0.0]
+
+    joint = Joint()
+    envelope = Envelope("joint", 0.0, -3.0, 3.0, 0.2, math.inf, Safety(limits=UserLimits(workspace=(-0.25, 0.25))))
+    guard = Guard(joint, 0, envelope, loop="velocity", start=0.0)
+    dt, t, reference = 0.001, 0.0, 0.1
+    while not guard.finished and t < 30.0:
+        v = guard.reference(t, reference if guard.trip is None else 0.0)
+        joint.velocity[0] = v
+        joint.position[0] += v * dt
+        guard.observe(t)
+        t += dt
+    assert guard.trip["field"] == "--workspace" and guard.trip["time_s"] == pytest.approx(2.5, abs=2 * dt)
+    assert guard.at_rest and abs(joint.position[0]) <= 0.01 * envelope.room
+    # The fade (1 s, drifting out 0.05 rad), 0.2 rad back at the capped 0.1 rad/s (2 s), the exponential
+    # tail from 0.1 to 0.03 rad (1.2 s) and the 0.5 s at rest: about 5 s, 6.2 s with the blends.
+    assert 4.5 < t - guard.trip["time_s"] < 7.5
