@@ -27,7 +27,7 @@ from jointctl.errors import JointCtlError
 from jointctl.model.package_paths import PackageResolver
 from jointctl.recording.foxglove_messages import (
     ERROR, EVENTS, INFO, OBJECTS, ROBOT_DESCRIPTION, SCENE_RATE_HZ, TF, RecordFormat, RobotFrames,
-    description_message, log_message, object_entity, reference_kinds, scene_update)
+    decimation, description_message, log_message, object_entity, reference_kinds, scene_update)
 from jointctl.recording.mcap_record import open_channels
 
 #: The port ``--foxglove`` listens on when none is given (the tuning page has 8765, Foxglove's usual one).
@@ -71,8 +71,8 @@ class FoxgloveLive:
         self.context = context if context is not None else foxglove.Context()
         self.channels = open_channels(self.context, self.format)
         self._cycle_channels = [self.channels[t] for t in self.format.cycle_topics()]
-        self._every = max(1, round(1.0 / (rate_hz * loop.period_s)))
-        self._scene_every = max(1, round(1.0 / (SCENE_RATE_HZ * loop.period_s)))
+        self._every = decimation(rate_hz, loop.period_s)
+        self._scene_every = decimation(SCENE_RATE_HZ, loop.period_s)
         self._count = 0
         self._wrenches = tuple(hardware.wrenches[s] for s in hardware.sensor_names)
         #: The wall-clock time at loop time zero [ns], set at the first cycle streamed.

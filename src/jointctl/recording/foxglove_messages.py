@@ -41,6 +41,8 @@ joint no controller commands has no reference) are ``null``.
 from __future__ import annotations
 
 import json
+import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from operator import itemgetter
@@ -174,6 +176,11 @@ def reference_kinds(manager, joint_names: Sequence[str]) -> list[str]:
 
 
 # -- stamps ---------------------------------------------------------------------------------------------
+def decimation(rate_hz: float, period_s: float) -> int:
+    """Every how many periods of ``period_s`` [s] to send so that the rate stays at most ``rate_hz``."""
+    return max(1, math.ceil(1.0 / (rate_hz * period_s) - 1e-9))
+
+
 def nanoseconds(time_s: float, origin_ns: int = 0) -> int:
     """``origin_ns`` plus ``time_s`` seconds, in whole nanoseconds."""
     return origin_ns + round(time_s * 1e9)
@@ -185,14 +192,22 @@ def stamp(ns: int) -> dict[str, int]:
     return {"sec": sec, "nsec": nsec}
 
 
-class _Null:
-    """Formats as JSON's ``null`` under ``%r`` (a non-finite value)."""
-
-    def __repr__(self) -> str:
-        return "null"
+#: How numbers are written: ten significant digits, as trace.csv writes them (the same values).
+NUMBER = "%.10g"
 
 
-NULL = _Null()
+def _number_text(value: float) -> str:
+    """A number as JSON text: :data:`NUMBER`, or ``null`` when it is not finite."""
+    return NUMBER % value if value - value == 0 else "null"
+
+
+def _templates(template: str) -> tuple[str, str]:
+    """``template``'s numbers (``%r``) written with :data:`NUMBER` (fast, every value finite) and as
+    strings (``%s``, for values passed through :func:`_number_text`)."""
+    def placeholder(kind: str) -> str:
+        return re.sub(r"%%|%r", lambda m: m.group(0) if m.group(0) == "%%" else kind, template)
+
+    return placeholder(NUMBER), placeholder("%s")
 
 
 def _getter(indices: Sequence[int]):
@@ -250,11 +265,15 @@ class RecordFormat:
             '%s:{"reference_%s":%%r,"position_%s":%%r,"velocity_%s":%%r,"effort_%s":%%r}'
             % (_name(j), u.reference, u.position, u.velocity, u.effort)
             for j, u in zip(self.joint_names, self.units)) + "}"
+        self._states, self._states_text = _templates(self._states)
+        self._references, self._references_text = _templates(self._references)
+        self._joints, self._joints_text = _templates(self._joints)
         w0 = 1 + 4 * n
         self._wrenches_values = _getter(range(w0, self.width)) if self.sensor_names else None
         self._wrenches = "{" + ",".join(
             '%s:{"frame_id":%s,' % (_name(s), _name(f)) + ",".join(f'"{a}":%r' for a in WRENCH_AXES) + "}"
             for s, f in zip(self.sensor_names, self.sensor_frames)) + "}"
+        self._wrenches, self._wrenches_text = _templates(self._wrenches)
 
     # -- the channels ----------------------------------------------------------------------------------
     def channels(self) -> list[ChannelSpec]:
@@ -299,44 +318,46 @@ class RecordFormat:
         return _object("jointctl.Wrenches", properties, "each force-torque sensor's wrench in its link's frame")
 
     # -- per-cycle messages ----------------------------------------------------------------------------
-    def cycle_messages(self, rows: np.ndarray, origin_ns: int = 0) -> list[tuple[int, list[bytes]]]:
+    def cycle_messages(self, rows: np.ndarray, lines: Sequence[str] | None = None,
+                       origin_ns: int = 0) -> list[tuple[int, list[bytes]]]:
         """For each row (time first): its stamp [ns] and the per-cycle messages in the order of
-        :meth:`cycle_topics`."""
+        :meth:`cycle_topics`. ``lines`` are the rows as trace.csv writes them (comma-separated
+        :data:`NUMBER` text); given, their numbers are used as they are written (no formatting again)."""
         rows = np.asarray(rows, dtype=float).reshape(-1, self.width)
         stamps = [origin_ns + int(ns) for ns in np.rint(rows[:, 0] * 1e9).astype(np.int64)]
-        bad = ~np.isfinite(rows)
-        if bad.any():
-            values = rows.astype(object)
-            values[bad] = NULL
-            listed = values.tolist()
-        else:
-            listed = rows.tolist()
-        states, states_values = self._states, self._states_values
-        refs, refs_values = self._references, self._references_values
-        joints, joints_values = self._joints, self._joints_values
-        wrenches, wrenches_values = self._wrenches, self._wrenches_values
+        if lines is None:
+            finite = np.isfinite(rows).all(axis=1).tolist()
+            return [(ns, self._messages(row, ns, ok)) for ns, row, ok in zip(stamps, rows.tolist(), finite)]
         out = []
-        for ns, row in zip(stamps, listed):
-            sec_nsec = divmod(ns, 1_000_000_000)
-            messages = [(states % (sec_nsec + states_values(row))).encode(),
-                        (refs % (sec_nsec + refs_values(row))).encode(),
-                        (joints % joints_values(row)).encode()]
-            if wrenches_values is not None:
-                messages.append((wrenches % wrenches_values(row)).encode())
-            out.append((ns, messages))
+        for ns, line in zip(stamps, lines):
+            values = line.split(",")
+            if "n" in line:  # nan, inf: JSON's null
+                values = [v if "n" not in v else "null" for v in values]
+            out.append((ns, self._text_messages(values, ns)))
         return out
 
     def row_messages(self, row: Sequence[float], ns: int) -> list[bytes]:
         """:meth:`cycle_messages` of one row (a sequence of floats) stamped ``ns`` [ns]: the live stream's."""
         total = sum(row)
-        if total - total:  # NaN or an infinity somewhere
-            row = [v if v - v == 0 else NULL for v in row]
+        return self._messages(row, ns, not total - total)  # NaN when a value is NaN or infinite
+
+    def _messages(self, row, ns: int, finite: bool) -> list[bytes]:
+        if not finite:
+            return self._text_messages([_number_text(v) for v in row], ns)
+        return self._format(row, ns, self._states, self._references, self._joints, self._wrenches)
+
+    def _text_messages(self, texts: Sequence[str], ns: int) -> list[bytes]:
+        """The messages of a row given as JSON number texts."""
+        return self._format(texts, ns, self._states_text, self._references_text, self._joints_text,
+                            self._wrenches_text)
+
+    def _format(self, row, ns: int, states: str, refs: str, joints: str, wrenches: str) -> list[bytes]:
         sec_nsec = divmod(ns, 1_000_000_000)
-        messages = [(self._states % (sec_nsec + self._states_values(row))).encode(),
-                    (self._references % (sec_nsec + self._references_values(row))).encode(),
-                    (self._joints % self._joints_values(row)).encode()]
+        messages = [(states % (sec_nsec + self._states_values(row))).encode(),
+                    (refs % (sec_nsec + self._references_values(row))).encode(),
+                    (joints % self._joints_values(row)).encode()]
         if self._wrenches_values is not None:
-            messages.append((self._wrenches % self._wrenches_values(row)).encode())
+            messages.append((wrenches % self._wrenches_values(row)).encode())
         return messages
 
     def cycle_topics(self) -> tuple[str, ...]:
@@ -392,7 +413,7 @@ class RobotFrames:
         """foxglove.FrameTransforms of each stamp [ns] and joint-position row."""
         translation, quaternion = self.transforms(positions)
         out = []
-        template = '{"transforms":%s}' % self._template
+        template = _templates('{"transforms":%s}' % self._template)[0]
         for ns, t, q in zip(times_ns, translation.tolist(), quaternion.tolist()):
             sec, nsec = divmod(int(ns), 1_000_000_000)
             values = []

@@ -28,7 +28,7 @@ from foxglove.mcap import MCAPWriteOptions
 from jointctl import __version__
 from jointctl.recording.foxglove_messages import (
     ERROR, EVENTS, INFO, OBJECTS, WARNING, ROBOT_DESCRIPTION, SCENE_RATE_HZ, TF, RecordFormat, RobotFrames,
-    description_message, log_message, nanoseconds, object_entity, reference_kinds, scene_update)
+    decimation, description_message, log_message, nanoseconds, object_entity, reference_kinds, scene_update)
 
 MCAP_FILE = "run.mcap"
 
@@ -37,6 +37,13 @@ def open_channels(context, record: RecordFormat) -> dict[str, Any]:
     """One channel per topic of ``record`` on ``context`` (a ``foxglove.Context``)."""
     return {spec.topic: foxglove.Channel(spec.topic, schema=spec.schema, context=context, metadata=spec.metadata)
             for spec in record.channels()}
+
+
+def _log_of(channel):
+    """``channel``'s log(message bytes, log time [ns]): the SDK channel's own, without the checks of the
+    Python wrapper (a message a row per channel: a microsecond each)."""
+    base = getattr(channel, "base", None)
+    return base.log if base is not None else (lambda message, ns: channel.log(message, log_time=ns))
 
 
 class ObjectTrack:
@@ -82,10 +89,10 @@ class McapRecorder:
         self._writer = foxglove.open_mcap(self.path, allow_overwrite=True, context=self._context,
                                           writer_options=MCAPWriteOptions(compression_threads=0))
         self.channels = open_channels(self._context, self.format)
-        self._cycle_channels = [self.channels[t] for t in self.format.cycle_topics()]
+        self._cycle_logs = [_log_of(self.channels[t]) for t in self.format.cycle_topics()]
         period = loop.period_s * every
         #: Rows between two TF messages (TF at most SCENE_RATE_HZ).
-        self.scene_every = max(1, round(1.0 / (SCENE_RATE_HZ * period)))
+        self.scene_every = decimation(SCENE_RATE_HZ, period)
         self.rows = 0
         self.closed = False
         self._events: list[tuple[int, int, str]] = []  # (stamp [ns], level, text)
@@ -96,7 +103,7 @@ class McapRecorder:
         self.objects: ObjectTrack | None = None
         sim = hardware.simulation
         if sim is not None:
-            self.objects = ObjectTrack(sim, max(1, round(1.0 / (SCENE_RATE_HZ * loop.period_s))))
+            self.objects = ObjectTrack(sim, decimation(SCENE_RATE_HZ, loop.period_s))
             loop.add_observer(self.objects)
             self._spawned = {o.name for o in sim.spawned}
             sim.on_rebuild(lambda: self._on_rebuild(sim))
@@ -149,19 +156,20 @@ class McapRecorder:
         self._pending = pending
         self._events = []
 
-    def add_rows(self, rows: np.ndarray) -> None:
-        """Write the per-cycle messages of trace rows (rows x columns, trace.csv's order), TF every
+    def add_rows(self, rows: np.ndarray, lines: list[str] | None = None) -> None:
+        """Write the per-cycle messages of trace rows (rows x columns, trace.csv's order; ``lines``: the
+        same rows as trace.csv's text, whose numbers are then used as written), TF every
         :attr:`scene_every` rows, and the events and object poses up to the last row's time."""
         if self.rows == 0 and not self._pending:
             self._merge_pending()
         rows = np.asarray(rows, dtype=float)
         first = self.rows
         self.rows += len(rows)
-        cycle = self.format.cycle_messages(rows)
+        cycle = self.format.cycle_messages(rows, lines)
         tf_rows = np.arange((-first) % self.scene_every, len(rows), self.scene_every)
         tf = dict(zip(tf_rows.tolist(), self.frames.messages([cycle[k][0] for k in tf_rows],
                                                                rows[tf_rows, self._positions])))
-        channels, tf_channel = self._cycle_channels, self.channels[TF]
+        logs, tf_log = self._cycle_logs, _log_of(self.channels[TF])
         pending = self._pending
         stamps = [item[0] for item in pending]
         start = 0
@@ -170,11 +178,11 @@ class McapRecorder:
             if stop > start:
                 self._write_pending(pending[start:stop])
                 start = stop
-            for channel, message in zip(channels, messages):
-                channel.log(message, log_time=ns)
+            for log, message in zip(logs, messages):
+                log(message, ns)
             message = tf.get(k)
             if message is not None:
-                tf_channel.log(message, log_time=ns)
+                tf_log(message, ns)
         del pending[:start]
 
     def _write_pending(self, items) -> None:

@@ -63,8 +63,9 @@ class TraceRecorder:
         self._spool_path = self.path.with_name(f".{self.path.name}.f64")
         self._spool = self._spool_path.open("wb")
         self.closed = False
-        #: Called with each block of rows (float64, rows x columns) as :meth:`close` formats the spool:
-        #: other records of the same rows (``run.mcap``) are written in the same pass, at full precision.
+        #: Called as :meth:`close` formats the spool, with each block of rows (float64, rows x columns) and
+        #: their lines of trace.csv (text, no newline): other records of the same rows (``run.mcap``) are
+        #: written in the same pass, with the same numbers.
         self.chunk_readers: list = []
 
     def __call__(self, time_s: float) -> None:
@@ -109,12 +110,12 @@ class TraceRecorder:
                 if chunk.size == 0:
                     break
                 block = chunk.reshape(-1, width)
-                rows = block.tolist()
-                out.write("\n".join([row_format % tuple(r) for r in rows]))
+                lines = [row_format % tuple(r) for r in block.tolist()]
+                out.write("\n".join(lines))
                 out.write("\n")
                 for reader in self.chunk_readers if failure is None else ():
                     try:
-                        reader(block)
+                        reader(block, lines)
                     except Exception as exc:  # noqa: BLE001  (trace.csv is finished first, then it is raised)
                         failure = exc
         self._spool_path.unlink()
