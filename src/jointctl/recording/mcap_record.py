@@ -5,9 +5,9 @@ references, the joints by name with units, wrenches, the robot description, TF, 
 the run's events) into an MCAP file with the Foxglove SDK's writer (zstd-compressed chunks, indexed).
 
 It costs the loop almost nothing: the per-cycle messages are made after the run, from the rows
-:class:`~jointctl.recording.trace.TraceRecorder` formats into ``trace.csv`` (the same rows, full
-precision, one pass over its spool), and TF from the recorded joint positions through the robot's own
-kinematics. During the run it only keeps what the trace has not: the spawned objects' poses (at most
+:class:`~jointctl.recording.trace.TraceRecorder` formats into ``trace.csv`` (the same rows and the very
+numbers trace.csv prints, in one pass over its spool), and TF from the recorded joint positions through the
+robot's own kinematics. During the run it only keeps what the trace has not: the spawned objects' poses (at most
 :data:`~jointctl.recording.foxglove_messages.SCENE_RATE_HZ`, only while objects exist) and the events
 (spawns and removals, controller failures; the session adds its trajectory goals before closing).
 Messages are written in time order, stamped with loop time from zero [ns].
@@ -48,7 +48,9 @@ def _log_of(channel):
 
 class ObjectTrack:
     """A loop observer keeping the spawned objects' poses every ``every`` cycles while there are any:
-    (loop time [s], ((spec, position [m], quaternion w x y z), ...)) per sample."""
+    (loop time [s], ((spec, position [m], quaternion w x y z), ...)) per sample. The poses are the
+    simulation door's, as the simulator last computed them (at the start of the physics step before the
+    cycle: up to one step behind the cycle's time)."""
 
     def __init__(self, simulation, every: int) -> None:
         self.simulation = simulation
