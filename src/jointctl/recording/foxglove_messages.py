@@ -236,16 +236,17 @@ class RecordFormat:
 
     A row is what ``trace.csv`` holds, in its column order: loop time [s], then per joint (``joint_names``
     order) the reference, the position, the velocity, the effort, then six wrench components per sensor
-    (``sensor_names``), in SI units. :meth:`cycle_messages` turns rows into the per-cycle channels'
+    (``sensor_names``), in SI units. ``kinds`` says per joint whether its reference is a ``position`` or a
+    ``velocity`` (:func:`reference_kinds`). :meth:`cycle_messages` turns rows into the per-cycle channels'
     messages.
     """
 
-    def __init__(self, robot: RobotModel, joint_names: Sequence[str], reference_kinds_: Sequence[str],
+    def __init__(self, robot: RobotModel, joint_names: Sequence[str], kinds: Sequence[str],
                  sensor_names: Sequence[str] = ()) -> None:
         self.robot = robot
         self.joint_names = tuple(joint_names)
         self.sensor_names = tuple(sensor_names)
-        self.units = [joint_units(robot, j, k) for j, k in zip(self.joint_names, reference_kinds_)]
+        self.units = [joint_units(robot, j, k) for j, k in zip(self.joint_names, kinds)]
         links = {s.name: s.link for s in robot.sensors}
         self.sensor_frames = tuple(links.get(s, s) for s in self.sensor_names)
         n = len(self.joint_names)
@@ -498,5 +499,5 @@ def description_message(urdf: str) -> bytes:
 
 __all__ = ["EVENTS", "JOINTS", "JOINT_STATES", "OBJECTS", "PER_CYCLE", "REFERENCES", "ROBOT_DESCRIPTION",
            "SCENE_RATE_HZ", "TF", "WORLD_FRAME", "WRENCHES", "ChannelSpec", "JointUnits", "RecordFormat",
-           "RobotFrames", "description_message", "joint_units", "log_message", "nanoseconds", "object_entity",
-           "quaternions", "reference_kinds", "scene_update", "stamp"]
+           "RobotFrames", "decimation", "description_message", "joint_units", "log_message", "nanoseconds",
+           "object_entity", "quaternions", "reference_kinds", "scene_update", "stamp"]
