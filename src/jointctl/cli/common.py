@@ -108,6 +108,29 @@ SET_VALUES = ("VALUE is YAML, numbers as written (800, 1_000, .5, 1e3, 1E-3, -2.
               "[lists]; repeatable")
 
 
+def foxglove_argument(parser: argparse.ArgumentParser) -> None:
+    """``--foxglove [PORT]``: stream the robot live to Foxglove (serve and tune)."""
+    from jointctl.recording.foxglove_live import DEFAULT_PORT
+
+    parser.add_argument("--foxglove", nargs="?", const=str(DEFAULT_PORT), default=None, metavar="PORT",
+                        help="also stream the robot over Foxglove's WebSocket protocol (joint states, references, "
+                             f"wrenches, TF, URDF, objects, events) on PORT (default {DEFAULT_PORT}; 0: any free "
+                             "port); open ws://127.0.0.1:PORT in Foxglove with jointctl's layout")
+
+
+def start_foxglove(args: argparse.Namespace, session, host: str = "127.0.0.1"):
+    """The live Foxglove server of ``--foxglove`` on ``session`` (None without it), said in one line."""
+    if args.foxglove is None:
+        return None
+    from jointctl.recording.foxglove_layout import LAYOUT_FILE
+    from jointctl.recording.foxglove_live import check_port, live_for_session
+
+    live = live_for_session(session, port=check_port(args.foxglove), host=host)
+    print(f"jointctl: Foxglove: ws://{host}:{live.port} (Open connection -> Foxglove WebSocket; layout "
+          f"{LAYOUT_FILE})", file=sys.stderr, flush=True)
+    return live
+
+
 def live_target_arguments(parser: argparse.ArgumentParser) -> None:
     """What serve and tune share: a robot and its controller file, or a scenario, run on the wall clock."""
     parser.add_argument("target", help=TARGET_HELP)

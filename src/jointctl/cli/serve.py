@@ -1,11 +1,14 @@
-"""``jointctl serve``: a robot or a scenario as a ROS 1 node, with the chapter's topic and action names."""
+"""``jointctl serve``: a robot or a scenario as a ROS 1 node, with the chapter's topic and action names; optionally
+recorded (``--record DIR``: trace.csv, run.mcap) and streamed to Foxglove (``--foxglove [PORT]``)."""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
-from jointctl.cli.common import (industrial_arguments, industrial_hardware, live_scenario,
-                                 live_target_arguments, ros_edge)
+from jointctl.cli.common import (foxglove_argument, industrial_arguments, industrial_hardware, live_scenario,
+                                 live_target_arguments, ros_edge, start_foxglove)
 
 
 def add_parsers(sub) -> None:
@@ -19,6 +22,9 @@ def add_parsers(sub) -> None:
                        help="sim: the robot in MuJoCo (default); industrial: a robot controller that interpolates "
                             "by itself, over simple_message (with --robot-ip; controllers default to 'industrial')")
     industrial_arguments(serve)
+    foxglove_argument(serve)
+    serve.add_argument("--record", type=Path, default=None, metavar="DIR",
+                       help="record the served run into DIR: trace.csv and run.mcap, written when the node stops")
     serve.set_defaults(handler=_serve)
 
 
@@ -26,11 +32,16 @@ def _serve(args: argparse.Namespace) -> int:
     from jointctl.scenario.session import Session
 
     scenario = live_scenario(args)
+    if args.foxglove is not None:
+        from jointctl.recording.foxglove_live import check_port
+
+        check_port(args.foxglove)  # refused before anything starts
     node = ros_edge("node")
     ros_section = scenario.robot.extras.get("ros") or {}
     source = str(scenario.robot.folder)
     hardware = industrial_hardware(args, scenario) if args.hardware == "industrial" else None
-    session = Session(scenario, hardware=hardware)
+    session = Session(scenario, hardware=hardware, out_dir=args.record, mcap=args.record is not None)
+    live = None
     started = {c.name for c in session.manager.active}
     actions = {name: spec for name, spec in node.check_actions(ros_section.get("actions"), source).items()
                if spec["controller"] in started}
@@ -38,9 +49,15 @@ def _serve(args: argparse.Namespace) -> int:
               for topic, name in node.check_command_topics(ros_section.get("command_topics"), source).items()
               if name in started}
     try:
+        live = start_foxglove(args, session)
         node.serve(session, sim_time=args.sim_time, speed=args.speed, actions=actions, command_topics=topics,
                    rviz=args.rviz)
     finally:
+        if live is not None:
+            live.stop()
         if hardware is not None:
             hardware.close()
+        session.close()  # the records of --record
+    if args.record is not None:
+        print(f"jointctl: wrote {args.record}/trace.csv and run.mcap", file=sys.stderr)
     return 0

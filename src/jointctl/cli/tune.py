@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from jointctl.cli.common import live_scenario, live_target_arguments
+from jointctl.cli.common import foxglove_argument, live_scenario, live_target_arguments, start_foxglove
 from jointctl.errors import JointCtlError
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -22,6 +22,7 @@ def add_parsers(sub) -> None:
                       help="allow --host other than loopback: anyone reaching it can move the robot")
     tune.add_argument("--out", type=Path, default=Path("out/tune"), help="where 'Write gains YAML' writes")
     tune.add_argument("--view", action="store_true", help="also show the robot in MuJoCo's viewer (a desktop window)")
+    foxglove_argument(tune)
     tune.set_defaults(handler=_tune)
 
 
@@ -37,6 +38,10 @@ def _tune(args: argparse.Namespace) -> int:
                                 field="--host", value=args.host)
         print(f"jointctl: warning: listening on {args.host}: anyone who can reach it can change gains and move "
               "the robot (the page has no login)", file=sys.stderr)
+    if args.foxglove is not None:
+        from jointctl.recording.foxglove_live import check_port
+
+        check_port(args.foxglove)  # refused before anything starts
     check_static_files()
     if args.view:
         from jointctl.visuals.viewer import LiveViewer, check_display
@@ -49,9 +54,13 @@ def _tune(args: argparse.Namespace) -> int:
             raise JointCtlError("the viewer shows the simulation; this robot has none", field="--view")
         viewer = LiveViewer(tuner.session.world, tuner.loop, stop_when_closed=False)
         tuner.loop.add_observer(viewer)
+    live = None
     try:
+        live = start_foxglove(args, tuner.session, host=args.host)
         serve_tuning(tuner, host=args.host, port=args.port, speed=args.speed)
     finally:
+        if live is not None:
+            live.stop()
         if viewer is not None:
             viewer.close()  # its window's thread would keep the process alive
     return 0

@@ -59,6 +59,21 @@ def expand_xacro(path: Path, resolver: PackageResolver, args: Mapping[str, str])
     return doc.toxml()
 
 
+def description_text(robot: RobotModel, search_path: Iterable[str | os.PathLike] = ()) -> str:
+    """The URDF text of ``robot`` as jointctl loaded it: its ``source`` file, xacro expanded with the same
+    ``$(find)`` resolution (``search_path``, then JOINTCTL_PACKAGE_PATH, ROS_PACKAGE_PATH and jointctl's
+    robots), or read as it is when it is plain URDF."""
+    if not robot.source:
+        raise ModelError("the robot model has no description file", field="robot_description", value=robot.name)
+    path = Path(robot.source)
+    if path.suffix == ".xacro":
+        return expand_xacro(path, PackageResolver(search_path), {})
+    try:
+        return path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"cannot read: {exc}", source=str(path), field="robot_description") from None
+
+
 def _wrapped_model_error(exc: BaseException) -> ModelError | None:
     """The ModelError inside xacro's exception wrapping (``.exc``, cause or context), if any."""
     seen = set()

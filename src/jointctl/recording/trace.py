@@ -63,6 +63,10 @@ class TraceRecorder:
         self._spool_path = self.path.with_name(f".{self.path.name}.f64")
         self._spool = self._spool_path.open("wb")
         self.closed = False
+        #: Called as :meth:`close` formats the spool, with each block of rows (float64, rows x columns) and
+        #: their lines of trace.csv (text, no newline): other records of the same rows (``run.mcap``) are
+        #: written in the same pass, with the same numbers.
+        self.chunk_readers: list = []
 
     def __call__(self, time_s: float) -> None:
         if self._countdown:
@@ -98,17 +102,26 @@ class TraceRecorder:
         width = len(self.columns)
         row_format = ",".join(["%.10g"] * width)
         rows_per_chunk = self.chunk_rows
+        failure = None
         with self.path.open("w") as out, self._spool_path.open("rb") as spool:
             out.write(",".join(self.columns) + "\n")
             while True:
                 chunk = np.fromfile(spool, dtype=np.float64, count=rows_per_chunk * width)
                 if chunk.size == 0:
                     break
-                rows = chunk.reshape(-1, width).tolist()
-                out.write("\n".join([row_format % tuple(r) for r in rows]))
+                block = chunk.reshape(-1, width)
+                lines = [row_format % tuple(r) for r in block.tolist()]
+                out.write("\n".join(lines))
                 out.write("\n")
+                for reader in self.chunk_readers if failure is None else ():
+                    try:
+                        reader(block, lines)
+                    except Exception as exc:  # noqa: BLE001  (trace.csv is finished first, then it is raised)
+                        failure = exc
         self._spool_path.unlink()
         self.closed = True
+        if failure is not None:
+            raise failure
 
     def __enter__(self) -> TraceRecorder:
         return self

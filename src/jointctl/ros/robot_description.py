@@ -41,9 +41,7 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from jointctl.control.joint_state_controller import JointStateController
-from jointctl.errors import JointCtlError
-from jointctl.model.loader import expand_xacro
-from jointctl.model.package_paths import PackageResolver
+from jointctl.model.loader import description_text
 
 ROBOT_DESCRIPTION_PARAM = "/robot_description"
 OBJECT_MARKERS_TOPIC = "/jointctl/object_markers"
@@ -67,16 +65,7 @@ def robot_description_text(robot, package_path: tuple[str, ...] = ()) -> str:
     """The URDF of ``robot`` (a RobotModel) as jointctl loaded it: its ``source`` file, xacro
     expanded with the same ``$(find)`` resolution (``package_path``, then JOINTCTL_PACKAGE_PATH,
     ROS_PACKAGE_PATH and jointctl's robots), or read as it is when it is plain URDF."""
-    if not robot.source:
-        raise JointCtlError("the robot model has no description file to publish", field="robot_description",
-                            value=robot.name)
-    path = Path(robot.source)
-    if path.suffix == ".xacro":
-        return expand_xacro(path, PackageResolver(package_path), {})
-    try:
-        return path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise JointCtlError(f"cannot read: {exc}", source=str(path), field="robot_description") from None
+    return description_text(robot, package_path)
 
 
 def joint_states_topic(node) -> str | None:

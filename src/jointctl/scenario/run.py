@@ -1,4 +1,4 @@
-"""Run a scenario to an output folder: trace.csv, figures, metrics.json; and the demo report."""
+"""Run a scenario to an output folder: trace.csv, run.mcap, figures, metrics.json; and the demo report."""
 
 from __future__ import annotations
 
@@ -29,14 +29,17 @@ def run_scenario(
     package_path: tuple[str, ...] = (),
     video: VideoSettings | None = None,
     view: bool = False,
+    mcap: bool = True,
 ) -> dict[str, Any]:
     """Run ``scenario``, write its outputs into ``out_dir`` and return the metrics. With ``video``,
     the world's states are kept at its frame rate and drawn after the run into ``video.gif`` (and
     ``video.mp4``), from its camera or the robot's (``robot.yaml``: ``video.camera``). With ``view``,
-    MuJoCo's viewer shows the run in a window as it goes (paced to the wall clock)."""
+    MuJoCo's viewer shows the run in a window as it goes (paced to the wall clock). With ``mcap`` (the
+    default), ``run.mcap`` beside ``trace.csv`` holds the run for Foxglove and PlotJuggler
+    (:mod:`jointctl.recording.mcap_record`)."""
     out = Path(out_dir)
     with Session(scenario, out_dir=out, realtime=realtime, speed=speed,
-                 package_path=package_path) as session:
+                 package_path=package_path, mcap=mcap) as session:
         analysis = check_analysis(session)
         capture = camera = None
         if video is not None:

@@ -5,7 +5,8 @@ robot's, e.g. :class:`~jointctl.hardware.industrial.IndustrialHardware`) is give
 
 A :class:`Session` owns every part of one run and wires the edges to the loop:
 each command source feeds its controller at the start of a cycle, and the
-recorder, when an output folder is given, observes the end of each cycle.
+recorder, when an output folder is given, observes the end of each cycle (and, with ``mcap``, the
+``run.mcap`` recorder keeps what the trace does not).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import numpy as np
 from jointctl.control.manager import ControllerManager, read_yaml
 from jointctl.errors import ConfigError
 from jointctl.hardware.mujoco_hardware import MujocoHardware
-from jointctl.model.loader import load_robot_model
+from jointctl.model.loader import description_text, load_robot_model
 from jointctl.model.robot_model import RobotModel
 from jointctl.runtime.clock import SimulatedClock, WallClockPacer
 from jointctl.runtime.loop import ControlLoop
@@ -27,6 +28,7 @@ from jointctl.sim.mjcf_builder import WorldSettings
 from jointctl.hardware.interface import HardwareInterface, SimulationDoor
 from jointctl.sim.world import MujocoWorld
 from jointctl.commands.sources import CommandSource, command_source_from_config
+from jointctl.recording.mcap_record import MCAP_FILE, McapRecorder
 from jointctl.recording.trace import TraceRecorder
 from jointctl.commands.sine_trajectory import coarse_sine
 from jointctl.trajectory.errors import InvalidTrajectory
@@ -48,6 +50,7 @@ class Session:
         speed: float = 1.0,
         package_path: tuple[str, ...] = (),
         hardware: HardwareInterface | None = None,
+        mcap: bool = False,
     ) -> None:
         self.scenario = scenario
         self.robot: RobotModel = load_robot_model(scenario.robot.description, search_path=package_path)
@@ -108,6 +111,14 @@ class Session:
             self.recorder = TraceRecorder(self.out_dir / TRACE_FILE, self.hardware,
                                           self.manager.references, every=scenario.record_every)
             self.loop.add_observer(self.recorder)
+        #: ``run.mcap`` beside the trace (with ``mcap``): the same rows and more for Foxglove and PlotJuggler.
+        self.mcap: McapRecorder | None = None
+        if self.recorder is not None and mcap:
+            self.mcap = McapRecorder(
+                self.out_dir / MCAP_FILE, robot=self.robot, hardware=self.hardware, manager=self.manager,
+                loop=self.loop, urdf=description_text(self.robot, package_path), every=scenario.record_every,
+                metadata={"scenario": scenario.name})
+            self.recorder.chunk_readers.append(self.mcap.add_rows)
 
     @property
     def trace_path(self) -> Path | None:
@@ -122,8 +133,15 @@ class Session:
         return cycles * self.loop.period_s / wall if wall > 0 else math.inf
 
     def close(self) -> None:
-        if self.recorder is not None:
-            self.recorder.close()
+        """Write the records: ``trace.csv`` (and ``run.mcap``)."""
+        try:
+            if self.mcap is not None and not self.mcap.closed:
+                self.mcap.add_goal_events(self.goals)
+            if self.recorder is not None:
+                self.recorder.close()
+        finally:
+            if self.mcap is not None:
+                self.mcap.close()
 
     def __enter__(self) -> Session:
         return self

@@ -1,0 +1,127 @@
+"""The live Foxglove server checked by a WebSocket client speaking Foxglove's protocol: it subscribes to the joint
+states of a robot stepping up and receives them, every 4 ms of loop time, equal to a simulated-time run's."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import socket
+import struct
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pytest
+import websockets
+
+from jointctl.recording import foxglove_messages as fm
+from jointctl.recording.foxglove_live import FoxgloveLive, check_port, live_for_session
+from jointctl.recording.trace import load_trace
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import load_scenario
+from tests.conftest import step_scenario
+
+SUBPROTOCOL = "foxglove.sdk.v1"  # the SDK server's protocol (Foxglove's WebSocket protocol)
+STEP_AT_S = 0.1
+RUN_S = 0.4
+
+
+async def _subscribe_and_collect(url: str, topics: list[str], started: threading.Event, until_s: float,
+                                 origin) -> dict[str, list[tuple[int, dict]]]:
+    """Subscribe to ``topics``, tell the loop to start, and collect messages until one is stamped past
+    ``until_s`` of loop time (``origin()`` maps stamps to loop time)."""
+    received: dict[str, list[tuple[int, dict]]] = {t: [] for t in topics}
+    async with websockets.connect(url, subprotocols=[SUBPROTOCOL], open_timeout=10) as ws:
+        assert ws.subprotocol == SUBPROTOCOL
+        channels: dict[str, int] = {}
+        while not set(topics) <= set(channels):
+            message = json.loads(await asyncio.wait_for(ws.recv(), 10))
+            if message["op"] == "advertise":
+                channels.update({c["topic"]: c["id"] for c in message["channels"]})
+        subscriptions = {k: topic for k, topic in enumerate(topics)}
+        await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+            {"id": k, "channelId": channels[topic]} for k, topic in subscriptions.items()]}))
+        await asyncio.sleep(0.2)  # the server has the subscription before the loop starts
+        started.set()
+        while True:
+            data = await asyncio.wait_for(ws.recv(), 10)
+            if not isinstance(data, bytes):
+                continue
+            opcode, subscription, stamp = struct.unpack_from("<BIQ", data)
+            assert opcode == 1  # message data
+            topic = subscriptions[subscription]
+            received[topic].append((stamp, json.loads(data[13:])))
+            if topic == fm.JOINT_STATES and origin() is not None and (stamp - origin()) * 1e-9 >= until_s:
+                return received
+
+
+@pytest.mark.wall_clock
+def test_a_client_receives_the_joint_states_of_a_robot_stepping_up(tmp_path, write_scenario):
+    path = write_scenario(step_scenario(duration_s=RUN_S, initial_positions={"joint1": -0.5}, commands={
+        "joint1_position_controller": {"type": "step", "from": -0.5, "to": -0.2, "at": STEP_AT_S}}))
+    offline = tmp_path / "offline"
+    with Session(load_scenario(path), out_dir=offline) as session:
+        session.run()
+    trace = load_trace(offline / "trace.csv")
+
+    session = Session(load_scenario(path), realtime=True)
+    live = live_for_session(session, port=0)
+    started = threading.Event()
+
+    def run():
+        started.wait(30)
+        session.run(RUN_S + 0.1)
+
+    loop = threading.Thread(target=run, daemon=True)
+    loop.start()
+    try:
+        received = asyncio.run(_subscribe_and_collect(live.url, [fm.JOINT_STATES, fm.ROBOT_DESCRIPTION, fm.TF],
+                                                      started, RUN_S - 0.01, lambda: live.origin_ns))
+    finally:
+        started.set()
+        loop.join(30)
+        live.stop()
+    assert "<robot" in received[fm.ROBOT_DESCRIPTION][0][1]["data"]  # sent to the new subscriber
+    states = received[fm.JOINT_STATES]
+    loop_ns = [stamp - live.origin_ns for stamp, _ in states]
+    assert loop_ns == sorted(set(loop_ns))  # strictly increasing
+    assert all(ns % 4_000_000 == 0 for ns in loop_ns)  # 250 Hz of loop time
+    assert loop_ns[0] == 0 and len(states) >= 95  # from the first cycle, none lost
+    times = np.array(loop_ns) * 1e-9
+    positions = np.array([m["joints"][0]["position"] for _, m in states])
+    rows = np.searchsorted(trace.time_s, times - 1e-9)
+    assert np.array_equal(positions, trace.joint("joint1", "position")[rows])  # the same numbers
+    rising = positions[(times > STEP_AT_S) & (times < STEP_AT_S + 0.15)]
+    assert len(rising) > 30 and np.all(np.diff(rising) > 0)  # the piston goes up
+    assert positions[-1] > positions[0] + 0.2
+    assert len(received[fm.TF]) >= 30  # the frames at 100 Hz too
+
+
+def test_ports_are_checked():
+    assert check_port("8766") == 8766 and check_port(0) == 0
+    for bad in ("70000", "-1", "abc", "8.5"):
+        with pytest.raises(Exception, match="--foxglove: must be a TCP port, 0 to 65535"):
+            check_port(bad)
+
+
+@pytest.mark.wall_clock
+def test_a_port_in_use_is_one_line(write_scenario):
+    session = Session(load_scenario(write_scenario(step_scenario())))
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        with pytest.raises(Exception, match=f"--foxglove: cannot listen for Foxglove on 127.0.0.1:{port}"):
+            FoxgloveLive(robot=session.robot, hardware=session.hardware, manager=session.manager, loop=session.loop,
+                         urdf="<robot/>", port=port)
+    assert not any(isinstance(o, FoxgloveLive) for o in session.loop.observers)  # nothing left behind
+
+
+@pytest.mark.parametrize("command", ["tune", "serve"])
+def test_a_bad_port_on_the_command_line_is_one_line_exit_2(command):
+    result = subprocess.run([sys.executable, "-m", "jointctl.cli", command, "one_dof", "--foxglove", "70000"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2, result.stderr
+    lines = [line for line in result.stderr.strip().splitlines() if not line.startswith("jointctl: took ")]
+    assert lines == ["jointctl: error: --foxglove: must be a TCP port, 0 to 65535 (got '70000')"]
