@@ -8,7 +8,8 @@ from pathlib import Path
 from typing import Any
 
 from jointctl.metrics.expectations import share_of
-from jointctl.scenario.analyses.common import analysed_joint, command_config, joint_plant, plot_effort
+from jointctl.scenario.analyses.common import (analysed_joint, command_config, joint_plant, plot_effort,
+                                               run_events, units)
 from jointctl.scenario.analyses.step_theory import step_theory
 from jointctl.scenario.session import Session
 from jointctl.recording import figures
@@ -28,11 +29,12 @@ def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, An
     result = step_response(t, cmd, pos, step_time_s=step_time)
     plant = joint_plant(session, joint)
     theory = step_theory(session, trace, joint, step_time)
-    unit = "m" if session.robot.joint(joint).is_prismatic else "rad"
+    unit = units(session, joint).position
     zoom = (step_time - 0.1, step_time + 1.0)
-    figures.plot_command_and_position(out / "position.png", t, cmd, pos,
+    events = run_events(session, trace)
+    figures.plot_command_and_position(out / "position.png", t, cmd, pos, unit=unit, events=events,
                                       title=f"{session.scenario.name}: {joint} step response")
-    figures.plot_command_and_position(out / "position_zoom.png", t, cmd, pos, zoom=zoom,
+    figures.plot_command_and_position(out / "position_zoom.png", t, cmd, pos, zoom=zoom, unit=unit, events=events,
                                       title=f"{session.scenario.name}: {joint} step (zoom)")
     plot_effort(session, trace, out, joint)
 
