@@ -39,6 +39,16 @@ def test_the_kick_of_a_derivative_on_the_error_is_the_loops_zero():
     assert result.overshoot_pct == pytest.approx(100 * (y.max() - 1.0), rel=1e-6)
 
 
+def test_the_step_response_in_time_is_the_loops_transfer_functions():
+    # The same loop with its kick, and a stiffer load resting short of the reference: y(t) of the step.
+    t = np.linspace(0, 3, 3001)
+    for stiffness, kick in ((400.0, 10.0), (500.0, 0.0)):
+        result = linear_step([[1.0]], [[stiffness]], [[12.0]], 0, 400.0, kick=kick)
+        _, y = signal.step(signal.lti([kick, 400.0] if kick else [400.0], [1.0, 12.0, stiffness]), T=t)
+        assert result.position(t) == pytest.approx(y, abs=1e-9)
+        assert result.position(-0.5) == 0.0 and result.position(50.0) == pytest.approx(result.final)
+
+
 def test_two_coupled_joints_ring_at_their_modes_and_the_dominant_one_is_named():
     # Two masses, the second hung on the first by a spring: the first's step rings mostly at the slow mode.
     mass = np.diag([1.0, 0.1])

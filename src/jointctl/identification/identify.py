@@ -49,9 +49,10 @@ from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Guard, Safe
                                             saturation_text)
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario
-from jointctl.recording.figures import plot_series
+from jointctl.recording.figures import Panel, plot_panels, plot_series
 from jointctl.recording.metrics_file import write_metrics
 from jointctl.recording.trace import load_trace
+from jointctl.recording.units import joint_units
 
 #: Rest before the excitation, for the joint to settle where its controller holds it [s].
 SETTLE_S = 1.0
@@ -322,25 +323,31 @@ def _metrics(fit: PlantFit, joint: str, *, received: int | None = None) -> dict:
 
 
 def _write(out_dir, joint, fit: PlantFit, metrics: dict, t, q, qd, u, coupling: Coupling | None = None) -> None:
+    """``identify_<joint>.png`` (and ``.svg``): the measured effort against the model's [N or N·m],
+    the residual (measured minus model) below; ``identify_<joint>_position.png``: the excitation
+    [m or rad]; ``metrics.json``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     split = stretches(t)
     shift = fit.effort_shift_cycles
     at, qdd = difference_rows(split.index, qd, split.dt, shift, fit.acceleration)
-    effort_unit = "N" if fit.joint_type == "prismatic" else "N·m"
-    series = {"measured effort": u[at + shift]}
+    unit = joint_units(fit.joint_type == "prismatic")
+    measured = u[at + shift]
+    series = {"measured effort": measured}
     if coupling is None:
-        series["identified model"] = fit.effort(q[at], qd[at], qdd)
+        model = series["identified model"] = fit.effort(q[at], qd[at], qdd)
     else:  # the joint's own model plus the others' load computed from the robot's model
         load = np.nan_to_num(coupling.torque[at])
-        series["identified model + coupling"] = fit.effort(q[at], qd[at], coupling.inertia_scale[at] * qdd) + load
+        model = fit.effort(q[at], qd[at], coupling.inertia_scale[at] * qdd) + load
+        series["identified model + coupling"] = model
         series["coupling (robot model)"] = load
-    plot_series(out / f"identify_{joint}.png", t[at], series,
-                title=f"{joint}: measured effort against the identified model (R² {fit.r_squared:.5f})",
-                ylabel=f"effort [{effort_unit}]")
+    # Below the fit, what it leaves unexplained: the measured effort minus the model's.
+    plot_panels(out / f"identify_{joint}.png", t[at],
+                [Panel(series, "effort", unit.effort, height=2.0),
+                 Panel({"measured - model": measured - model}, "residual", unit.effort)],
+                title=f"{joint}: measured effort against the identified model (R² {fit.r_squared:.5f})")
     plot_series(out / f"identify_{joint}_position.png", t, {"position": q},
-                title=f"{joint}: the excitation", ylabel="position [m]" if fit.joint_type == "prismatic"
-                else "position [rad]")
+                title=f"{joint}: the excitation", ylabel="position", unit=unit.position)
     write_metrics(out, metrics)  # strict JSON: a figure not measured or unbounded is null
 
 

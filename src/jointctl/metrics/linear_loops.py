@@ -20,7 +20,7 @@ overshoot of that joint's step. With one joint it is the textbook loop, ``ωn = 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -53,7 +53,9 @@ class LinearStep:
     ``final`` is its final deviation per unit of step [-]; ``natural_frequency_rad_s`` and
     ``damping_ratio`` those of the dominant mode of its transient; ``overshoot_pct`` its peak
     beyond the final value in percent of the final value [%] (0 if none); ``modes`` every mode,
-    dominant first; ``second_share`` the largest share of another mode (0 with one mode).
+    dominant first; ``second_share`` the largest share of another mode (0 with one mode);
+    ``poles`` [1/s] and ``residues`` [-] the transient's terms, one per mode (an oscillating pair
+    once, its residue doubled): :meth:`position` sums them.
     """
 
     final: float
@@ -63,6 +65,17 @@ class LinearStep:
     overshoot_pct: float
     modes: tuple[Mode, ...]
     second_share: float
+    poles: tuple[complex, ...] = field(default=(), repr=False)
+    residues: tuple[complex, ...] = field(default=(), repr=False)
+
+    def position(self, tau_s: ArrayLike) -> np.ndarray:
+        """The joint's position change per unit step of its reference [-] at ``tau_s`` [s] after the
+        step: 0 at and before it, ``final`` once the transient has died out."""
+        tau = np.asarray(tau_s, dtype=float)
+        after = np.clip(tau, 0.0, None).ravel()
+        poles, residues = np.asarray(self.poles, dtype=complex), np.asarray(self.residues, dtype=complex)
+        transient = (residues[:, None] * np.exp(poles[:, None] * after[None, :])).real.sum(axis=0)
+        return np.where(tau > 0, self.final + transient.reshape(tau.shape), 0.0)
 
 
 def linear_step(mass_matrix: ArrayLike, stiffness: ArrayLike, damping: ArrayLike, joint: int, gain: float,
@@ -126,4 +139,5 @@ def linear_step(mass_matrix: ArrayLike, stiffness: ArrayLike, damping: ArrayLike
     return LinearStep(final=step, natural_frequency_rad_s=dominant.natural_frequency_rad_s,
                       damping_ratio=dominant.damping_ratio, oscillating=dominant.oscillating,
                       overshoot_pct=overshoot, modes=modes,
-                      second_share=modes[1].share if len(modes) > 1 else 0.0)
+                      second_share=modes[1].share if len(modes) > 1 else 0.0,
+                      poles=tuple(complex(x) for x in lam_m), residues=tuple(complex(x) for x in coeff_m))

@@ -1,10 +1,10 @@
 """Turn a recorded run into metrics and figures, with the theory they are compared to.
 
 A scenario's ``analysis`` names one of :data:`ANALYSES`. Each analysis reads the trace, writes PNG
-figures into the output folder and returns the metrics (measured figures plus an ``expected``
-mapping of the same keys computed from the model: moving mass, joint damping, controller gains,
-gravity; None, with the reason in ``not_applicable``, where the theory does not hold). Each
-experiment's analysis is the module beside it; what they share is
+figures (an SVG beside each) into the output folder and returns the metrics (measured figures plus
+an ``expected`` mapping of the same keys computed from the model: moving mass, joint damping,
+controller gains, gravity; None, with the reason in ``not_applicable``, where the theory does not
+hold). Each experiment's analysis is the module beside it; what they share is
 :mod:`jointctl.scenario.analyses.common`. Every analysis ends with ``warnings``
 (:mod:`jointctl.scenario.analyses.checks`): figures that miss their expectation or the scenario's
 ``analysis.spec`` by more than their margin, and joints whose effort sat at its limit.

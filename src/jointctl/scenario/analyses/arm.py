@@ -12,7 +12,8 @@ from scipy.optimize import fsolve
 from jointctl.errors import ConfigError
 from jointctl.metrics.expectations import share_of
 from jointctl.model.dynamics import RobotDynamics
-from jointctl.scenario.analyses.common import rms_tracking_error, run_variant
+from jointctl.scenario.analyses.common import (common_units, effort_limit_levels, rms_tracking_error, run_events,
+                                               run_variant)
 from jointctl.scenario.session import Session
 from jointctl.recording import figures
 from jointctl.recording.trace import Trace
@@ -44,11 +45,15 @@ def analyse_arm_pose(session: Session, trace: Trace, out: Path, params: dict[str
                                   / metrics["rms_tracking_error_rad_feedforward"])
     t = trace.time_s
     name = session.scenario.name
+    joint_units, events = common_units(session, joints), run_events(session, trace)
     for label, run in (("jointctl", trace), *variants.items()):
         figures.plot_series(out / f"tracking_error_{label}.png", t,
                             {j: run.joint(j, "reference") - run.joint(j, "position") for j in joints},
                             title=f"{name}: tracking error, {label.replace('_', ' ')}",
-                            ylabel="reference - position [rad]")
+                            ylabel="reference - position", unit=joint_units.position, events=events)
+    figures.plot_series(out / "effort.png", t, {j: trace.joint(j, "effort") for j in joints},
+                        title=f"{name}: joint efforts", ylabel="effort", unit=joint_units.effort, events=events,
+                        levels=[level for j in joints for level in effort_limit_levels(session, j, series=j)])
     droop_params = params.get("uncompensated")
     if droop_params is not None:
         pose = dict(zip(joints, target.tolist()))
@@ -65,7 +70,7 @@ def analyse_arm_pose(session: Session, trace: Trace, out: Path, params: dict[str
         figures.plot_series(out / "uncompensated_droop.png", droop.time_s,
                             {j: droop.joint(j, "position") for j in joints},
                             title=f"{name}: holding the pose without gravity compensation",
-                            ylabel="joint angle [rad]")
+                            ylabel="joint angle", unit=joint_units.position)
     return metrics
 
 

@@ -1,5 +1,7 @@
 """What the analyses share: the joint's plant from the robot's dynamics, the scenario's joint, sensor,
-object and command, re-runs of the scenario with changes, tracking errors and the effort plot."""
+object and command, re-runs of the scenario with changes, tracking errors, and what every figure
+shows: each joint's units (from its type), its effort limit lines, the run's events (objects
+spawned and their impacts, goals started and ended) and the effort plot."""
 
 from __future__ import annotations
 
@@ -15,10 +17,13 @@ from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import flatten
 from jointctl.recording import figures
+from jointctl.recording.figures import Event, Level
 from jointctl.recording.trace import Trace, load_trace
+from jointctl.recording.units import JointUnits, joint_units
 
 CONTACT_THRESHOLD_N = 1.0  # sensed force beyond the unloaded reading that counts as contact
 STEADY_WINDOW_S = 1.0      # steady values are means over the last second of the run
+UNLOADED_WINDOW_S = 0.1    # the unloaded sensor reading: its mean over this long before an object appears
 
 
 @dataclass(frozen=True)
@@ -95,10 +100,82 @@ def sensor_link_mass(session: Session, sensor: str) -> float:
     return inertial.mass_kg if inertial else 0.0
 
 
+def units(session: Session, joint: str) -> JointUnits:
+    """The SI units of ``joint``'s signals: m and N for a prismatic joint, rad and N·m otherwise."""
+    return joint_units(session.robot.joint(joint))
+
+
+def common_units(session: Session, joints) -> JointUnits:
+    """The units ``joints`` share (a figure of several joints has one axis); where prismatic and
+    revolute joints mix, each unit names both ("m, rad") and is shown without a prefix."""
+    found = {units(session, j) for j in joints}
+    if len(found) == 1:
+        return found.pop()
+    return JointUnits(*(", ".join(sorted({getattr(u, f) for u in found}))
+                        for f in ("position", "velocity", "acceleration", "effort")))
+
+
+def effort_limit_levels(session: Session, joint: str, *, series: str | None = None) -> list[Level]:
+    """The lines at ``joint``'s effort limit ±limit (none without a positive limit), in N or N·m;
+    ``series``: the figure's series of that joint (several joints on one axis): the lines take its
+    colour and their label names the joint."""
+    spec = session.robot.joint(joint)
+    limit = spec.limits.effort if spec.limits is not None else 0.0
+    if not limit or not limit > 0 or not np.isfinite(limit):
+        return []
+    text = f"{joint} limit" if series is not None else "effort limit"
+    text += f" ±{limit:g} {units(session, joint).effort}"
+    return [Level(limit, text, series=series), Level(-limit, text, series=series)]
+
+
+def run_events(session: Session, trace: Trace) -> list[Event]:
+    """The moments a reader of the run's figures wants to see, in loop time [s]: each object's spawn
+    (``scenario.objects[].spawn_at_s``, "<name> spawned"), its impact ("<name> impact": the first
+    sample after the spawn where a force sensor's reading departs by more than
+    :data:`CONTACT_THRESHOLD_N` from its mean over the :data:`UNLOADED_WINDOW_S` before it), and
+    each accepted trajectory goal's start and end ("goal start", "goal end: succeeded"; numbered
+    when there are several)."""
+    events: list[Event] = []
+    t = trace.time_s
+    sensors = [s.name for s in session.robot.sensors
+               if all(f"{s.name}.force_{a}" in trace.columns for a in "xyz")]
+    for obj in sorted(session.scenario.objects, key=lambda o: o.spawn_at_s):
+        if obj.spawn_at_s > t[-1]:
+            continue
+        events.append(Event(obj.spawn_at_s, f"{obj.name} spawned", "spawn"))
+        impacts = [time for time in (_first_load_change(trace, sensor, obj.spawn_at_s) for sensor in sensors)
+                   if time is not None]
+        if impacts:
+            events.append(Event(min(impacts), f"{obj.name} impact", "contact"))
+    goals = [g for g in session.goals if g.validated is not None]
+    for k, goal in enumerate(goals):
+        number = f" {k + 1}" if len(goals) > 1 else ""
+        events.append(Event(float(goal.validated.start_time_s), f"goal{number} start", "goal"))
+        if goal.result is not None and goal.result.time_s <= t[-1]:
+            events.append(Event(float(goal.result.time_s), f"goal{number} end: {goal.status.value}", "goal"))
+    return events
+
+
+def _first_load_change(trace: Trace, sensor: str, after_s: float) -> float | None:
+    """The first time [s] at or after ``after_s`` at which ``sensor``'s force departs from its
+    unloaded reading by more than :data:`CONTACT_THRESHOLD_N` (None if it never does)."""
+    t = trace.time_s
+    force = np.column_stack([trace[f"{sensor}.force_{a}"] for a in "xyz"])
+    before = (t < after_s) & (t >= after_s - UNLOADED_WINDOW_S)
+    if not before.any():
+        before = np.arange(t.size) == max(int(np.searchsorted(t, after_s)) - 1, 0)
+    unloaded = force[before].mean(axis=0)
+    loaded = np.flatnonzero((t >= after_s) & (np.linalg.norm(force - unloaded, axis=1) > CONTACT_THRESHOLD_N))
+    return float(t[loaded[0]]) if loaded.size else None
+
+
 def plot_effort(session: Session, trace: Trace, out: Path, joint: str) -> None:
-    """``effort.png``: the joint's effort over the run."""
+    """``effort.png`` (and ``.svg``): the joint's effort over the run [N or N·m], its effort limit
+    lines and the run's events."""
     figures.plot_series(out / "effort.png", trace.time_s, {f"{joint} effort": trace.joint(joint, "effort")},
-                        title=f"{session.scenario.name}: {joint} effort", ylabel="effort [N]")
+                        title=f"{session.scenario.name}: {joint} effort", ylabel="effort",
+                        unit=units(session, joint).effort, levels=effort_limit_levels(session, joint),
+                        events=run_events(session, trace))
 
 
 def run_variant(session: Session, out: Path, controller_overrides: dict[str, Any],

@@ -14,11 +14,15 @@ from jointctl.scenario.analyses.common import (
     analysed_joint,
     analysed_sensor,
     dropped_object,
+    effort_limit_levels,
     joint_plant,
+    run_events,
     sensor_link_mass,
+    units,
 )
 from jointctl.scenario.session import Session
 from jointctl.recording import figures
+from jointctl.recording.figures import Panel
 from jointctl.recording.trace import Trace
 
 
@@ -56,9 +60,15 @@ def analyse_drop_weight(session: Session, trace: Trace, out: Path, params: dict[
         "plant": plant.__dict__,
     }
     name = session.scenario.name
-    figures.plot_series(out / "effort_and_force.png", t,
-                        {f"{joint} effort [N]": effort, f"{sensor} force z [N]": force_z},
-                        title=f"{name}: actuator effort and sensed force", ylabel="force [N]")
+    joint_units, events = units(session, joint), run_events(session, trace)
+    limits = effort_limit_levels(session, joint)
+    if joint_units.effort == "N":  # a prismatic joint's effort and the sensed force share one axis
+        panels = [Panel({f"{joint} effort": effort, f"{sensor} force z": force_z}, "force", "N", limits)]
+    else:
+        panels = [Panel({f"{joint} effort": effort}, "effort", joint_units.effort, limits),
+                  Panel({f"{sensor} force z": force_z}, "force", "N")]
+    figures.plot_panels(out / "effort_and_force.png", t, panels, events=events,
+                        title=f"{name}: actuator effort and sensed force")
     figures.plot_command_and_position(out / "position.png", t, trace.joint(joint, "reference"), position,
-                                      title=f"{name}: {joint} position")
+                                      unit=joint_units.position, events=events, title=f"{name}: {joint} position")
     return metrics

@@ -46,8 +46,10 @@ from jointctl.errors import ConfigError, ControllerError
 from jointctl.metrics.expectations import share_of
 from jointctl.model.mjcf import rpy_to_matrix
 from jointctl.model.robot_model import RobotModel
+from jointctl.scenario.analyses.common import effort_limit_levels, run_events, units
 from jointctl.scenario.session import Session
 from jointctl.recording import figures
+from jointctl.recording.figures import Level
 from jointctl.recording.trace import Trace
 from jointctl.trajectory.executor import TrajectoryExecutor
 
@@ -392,25 +394,26 @@ def analyse_minimal_robot_trajectory(session: Session, trace: Trace, out: Path,
                     **{key: share_of(final_command - final_pose, "sag")
                        for key in ("final_position_rad", "final_rest_position_rad", "steady_state_error_rad")}},
     }
-    _figures(session.scenario.name, out, joint, t, command, position, model, effort, points_t, points_q,
-             final_pose, start, end)
+    _figures(session, trace, out, joint, command, position, model, effort, points_t, points_q, final_pose, start,
+             end)
     return metrics
 
 
-def _figures(name: str, out: Path, joint: str, t, command, position, model, effort, points_t, points_q,
-             final_pose: float, start: float, end: float) -> None:
+def _figures(session: Session, trace: Trace, out: Path, joint: str, command, position, model, effort, points_t,
+             points_q, final_pose: float, start: float, end: float) -> None:
     plot = figures.plot_series
+    name, t = session.scenario.name, trace.time_s
+    joint_units, events = units(session, joint), run_events(session, trace)
+    angle = {"ylabel": "joint angle", "unit": joint_units.position}
     plot(out / "coarse_points.png", points_t, {"the client's points": points_q},
-         title=f"{name}: the client's coarse, irregular points (fig. 11.8)", ylabel="joint angle [rad]",
-         markers=True)
+         title=f"{name}: the client's coarse, irregular points (fig. 11.8)", markers=True, **angle)
     during = (t >= start - 0.2) & (t <= end + 0.2)
     plot(out / "interpolated_command.png", t[during], {"linear interpolation, 100 Hz": command[during]},
-         title=f"{name}: the server's interpolated command (fig. 11.9)", ylabel="joint angle [rad]")
-    plot(out / "position.png", t,
-         {"reference": command, "model (theory)": model, f"{joint} angle": position,
-          "predicted final pose": np.full_like(t, final_pose)},
-         title=f"{name}: commanded and actual angle", ylabel="joint angle [rad]")
+         title=f"{name}: the server's interpolated command (fig. 11.9)", events=events, **angle)
+    plot(out / "position.png", t, {"reference": command, "model (theory)": model, f"{joint} angle": position},
+         title=f"{name}: commanded and actual angle", events=events,
+         levels=[Level(final_pose, "predicted final pose", "expected")], **angle)
     plot(out / "tracking_error.png", t, {"command - angle": command - position},
-         title=f"{name}: tracking error", ylabel="error [rad]")
+         title=f"{name}: tracking error", ylabel="error", unit=joint_units.position, events=events)
     plot(out / "effort.png", t, {f"{joint} torque": effort}, title=f"{name}: joint torque",
-         ylabel="torque [N·m]")
+         ylabel="torque", unit=joint_units.effort, levels=effort_limit_levels(session, joint), events=events)

@@ -18,8 +18,10 @@ from jointctl.scenario.analyses.common import (
     analysed_sensor,
     dropped_object,
     joint_plant,
+    run_events,
     run_variant,
     sensor_link_mass,
+    units,
 )
 from jointctl.scenario.session import Session
 from jointctl.recording import figures
@@ -182,8 +184,9 @@ def analyse_nac_drop(session: Session, trace: Trace, out: Path, params: dict[str
     sag = abs(expected["rest_position_loaded_m"] - expected["rest_position_unloaded_m"])
     metrics["margins"] = {key: share_of(sag, "sag") for key in expected if "rest_position" in key}
     name = session.scenario.name
+    events = run_events(session, trace)
     figures.plot_series(out / "position.png", t, series, title=f"{name}: {joint} position",
-                        ylabel="position [m]")
+                        ylabel="position", unit=units(session, joint).position, events=events)
     figures.plot_series(out / "force.png", t, {f"{sensor} force z": force_z},
-                        title=f"{name}: sensed force", ylabel="force [N]")
+                        title=f"{name}: sensed force", ylabel="force", unit="N", events=events)
     return metrics

@@ -18,10 +18,12 @@ from jointctl.scenario.analyses.common import (
     STEADY_WINDOW_S,
     analysed_sensor,
     dropped_object,
+    run_events,
     run_variant,
 )
 from jointctl.scenario.session import Session
 from jointctl.recording import figures
+from jointctl.recording.figures import Event
 from jointctl.recording.trace import Trace
 
 
@@ -85,7 +87,10 @@ def analyse_nac_catch(session: Session, trace: Trace, out: Path, params: dict[st
                      "sag_m": float(expected_sag)},
         "margins": {key: share_of(expected_sag, "sag") for key in ("flange_rest_position_m", "sag_m")},
     }
-    _plot(out, session.scenario.name, nac, chapter_damping, main, chapter)
+    # The impact as this analysis finds it (the tared base-frame force), beside the run's other events.
+    events = [e for e in run_events(session, trace) if e.kind != "contact"]
+    events.append(Event(main.first_contact_s, f"{weight.name} impact", "contact"))
+    _plot(out, session.scenario.name, nac, chapter_damping, main, chapter, events)
     return metrics
 
 
@@ -171,21 +176,21 @@ class FlangeRecord:
 
 
 def _plot(out: Path, name: str, nac: CartesianAdmittanceController, chapter_damping: list[float], main: Catch,
-          chapter: Catch) -> None:
+          chapter: Catch, events: list[Event]) -> None:
     t = main.t
     figures.plot_series(out / "flange_z.png", t,
                         {f"B = {tuple(nac.damping.tolist())} N·s/m": main.p[:, 2],
                          f"chapter: B = {tuple(chapter_damping)} N·s/m": chapter.p[:, 2]},
-                        title=f"{name}: flange height", ylabel="z [m]")
+                        title=f"{name}: flange height", ylabel="z", unit="m", events=events)
     figures.plot_series(out / "flange_xy.png", t,
                         {"x": main.p[:, 0], "y": main.p[:, 1],
                          "x, chapter damping": chapter.p[:, 0], "y, chapter damping": chapter.p[:, 1]},
-                        title=f"{name}: flange x and y", ylabel="position [m]")
+                        title=f"{name}: flange x and y", ylabel="position", unit="m", events=events)
     forces = ({f"F{a} (base frame, tared)": main.force[:, k] for k, a in enumerate("xyz")}
               | {"Fz, chapter damping": chapter.force[:, 2]})
     contact_s = main.first_contact_s
     for suffix, zoom in (("", None), ("_impact", (contact_s - 0.05, contact_s + 0.3)),
                          ("_after_impact", (contact_s + 0.5, float(t[-1])))):
         label = f" ({suffix[1:].replace('_', ' ')})" if suffix else ""
-        figures.plot_series(out / f"force{suffix}.png", t, forces, zoom=zoom,
-                            title=f"{name}: sensed force{label}", ylabel="force [N]")
+        figures.plot_series(out / f"force{suffix}.png", t, forces, zoom=zoom, events=events,
+                            title=f"{name}: sensed force{label}", ylabel="force", unit="N")

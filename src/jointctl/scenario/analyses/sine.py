@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import Any
 
 from jointctl.errors import ConfigError
-from jointctl.scenario.analyses.common import analysed_joint, command_config, joint_plant, plot_effort
+from jointctl.scenario.analyses.common import (analysed_joint, command_config, joint_plant, plot_effort,
+                                               run_events, units)
 from jointctl.scenario.session import Session
 from jointctl.recording import figures
 from jointctl.recording.trace import Trace
@@ -44,8 +45,9 @@ def analyse_sine(session: Session, trace: Trace, out: Path, params: dict[str, An
     joint, freq, t, cmd, pos, result, plant = _sine_fit(session, trace, params, "position", 1.0)
     ratio, lag = second_order_frequency_response(plant.moving_mass_kg, plant.kp,
                                                  plant.damping + plant.kd, 2 * math.pi * freq)
-    figures.plot_command_and_position(out / "position.png", t, cmd, pos,
-                                      title=f"{session.scenario.name}: {joint} sine tracking")
+    figures.plot_command_and_position(out / "position.png", t, cmd, pos, unit=units(session, joint).position,
+                                      title=f"{session.scenario.name}: {joint} sine tracking",
+                                      events=run_events(session, trace))
     plot_effort(session, trace, out, joint)
     return {"phase_lag_deg": result.phase_lag_deg, "amplitude_ratio": result.amplitude_ratio,
             "frequency_hz": freq, "periods_used": result.periods_used,
@@ -58,11 +60,14 @@ def analyse_velocity_sine(session: Session, trace: Trace, out: Path, params: dic
     joint, freq, t, cmd, vel, result, plant = _sine_fit(session, trace, params, "velocity", 0.5)
     ratio, lag = first_order_frequency_response(plant.moving_mass_kg, plant.kp, plant.damping,
                                                 2 * math.pi * freq)
-    figures.plot_command_and_position(out / "velocity.png", t, cmd, vel, ylabel="velocity [m/s]",
-                                      command_label="velocity command", position_label="velocity",
+    joint_units, events = units(session, joint), run_events(session, trace)
+    figures.plot_command_and_position(out / "velocity.png", t, cmd, vel, ylabel="velocity",
+                                      unit=joint_units.velocity, command_label="velocity command",
+                                      position_label="velocity", events=events,
                                       title=f"{session.scenario.name}: {joint} velocity tracking")
     figures.plot_series(out / "position.png", t, {f"{joint} position": trace.joint(joint, "position")},
-                        title=f"{session.scenario.name}: {joint} position", ylabel="position [m]")
+                        title=f"{session.scenario.name}: {joint} position", ylabel="position",
+                        unit=joint_units.position, events=events)
     plot_effort(session, trace, out, joint)
     return {"velocity_amplitude_ratio": result.amplitude_ratio,
             "velocity_phase_lag_deg": result.phase_lag_deg, "frequency_hz": freq,

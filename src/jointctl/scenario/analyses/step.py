@@ -7,13 +7,20 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from jointctl.metrics.expectations import share_of
-from jointctl.scenario.analyses.common import analysed_joint, command_config, joint_plant, plot_effort
-from jointctl.scenario.analyses.step_theory import step_theory
+from jointctl.scenario.analyses.common import (analysed_joint, command_config, joint_plant, plot_effort,
+                                               run_events, units)
+from jointctl.scenario.analyses.step_theory import STEADY, StepTheory, step_theory
 from jointctl.scenario.session import Session
 from jointctl.recording import figures
+from jointctl.recording.figures import StepMarks
 from jointctl.recording.trace import Trace
-from jointctl.metrics.response import step_response
+from jointctl.metrics.response import StepResponse, step_response
+
+#: The settling band's half-width, a share of the step (the step analysis' settling time uses it).
+SETTLE_BAND = 0.02
 
 
 def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
@@ -25,15 +32,19 @@ def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, An
     step_time = float(cfg.get("at", 0.0))
     t = trace.time_s
     cmd, pos = trace.joint(joint, "reference"), trace.joint(joint, "position")
-    result = step_response(t, cmd, pos, step_time_s=step_time)
+    result = step_response(t, cmd, pos, step_time_s=step_time, settle_band=SETTLE_BAND)
     plant = joint_plant(session, joint)
     theory = step_theory(session, trace, joint, step_time)
-    unit = "m" if session.robot.joint(joint).is_prismatic else "rad"
+    unit = units(session, joint).position
     zoom = (step_time - 0.1, step_time + 1.0)
-    figures.plot_command_and_position(out / "position.png", t, cmd, pos,
-                                      title=f"{session.scenario.name}: {joint} step response")
-    figures.plot_command_and_position(out / "position_zoom.png", t, cmd, pos, zoom=zoom,
-                                      title=f"{session.scenario.name}: {joint} step (zoom)")
+    marks = step_marks(t, pos, step_time, result, theory)
+    curve = theory.response(t, step_time)
+    label = ("linear theory" if "overshoot_pct" not in theory.not_applicable
+             else "linear theory (not valid: the loop saturated)")
+    events = run_events(session, trace)
+    for name, window, what in (("position.png", None, "step response"), ("position_zoom.png", zoom, "step (zoom)")):
+        figures.plot_step(out / name, t, cmd, pos, title=f"{session.scenario.name}: {joint} {what}", unit=unit,
+                          marks=marks, theory=curve, theory_label=label, zoom=window, events=events)
     plot_effort(session, trace, out, joint)
 
     def named(key: str) -> str:  # the steady-state error in the joint's own unit, said in its name
@@ -48,3 +59,34 @@ def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, An
     if theory.not_applicable:
         out_metrics["not_applicable"] = {named(k): v for k, v in theory.not_applicable.items()}
     return out_metrics
+
+
+def step_marks(t: np.ndarray, position: np.ndarray, step_time_s: float, result: StepResponse,
+               theory: StepTheory) -> StepMarks:
+    """What the step figures mark (:class:`~jointctl.recording.figures.StepMarks`): the measured
+    initial and final values, overshoot peak, 10-90 % rise and settling time of ``result``, the
+    ±:data:`SETTLE_BAND` band, and the theory's rest as the expected final value (where it applies)."""
+    step = result.final_value - result.initial_value
+    after = t >= step_time_s
+    tau, progress = t[after] - step_time_s, np.sign(step) * (position[after] - result.initial_value) / abs(step)
+    rise = [_first_crossing(tau, progress, level) for level in (0.1, 0.9)]
+    peak = int(np.argmin(np.abs(t - (step_time_s + result.peak_time_s))))
+    expected = theory.details.get("rest_position") if theory.expected.get(STEADY) is not None else None
+    return StepMarks(
+        step_time_s=step_time_s, initial_value=result.initial_value, final_value=result.final_value,
+        settle_band=SETTLE_BAND, overshoot_pct=result.overshoot_pct, peak_time_s=float(t[peak]),
+        peak_value=float(position[peak]),
+        rise_start_s=None if rise[0] is None else step_time_s + rise[0],
+        rise_end_s=None if rise[1] is None else step_time_s + rise[1],
+        settling_time_s=result.settling_time_s, expected_final=expected)
+
+
+def _first_crossing(tau: np.ndarray, progress: np.ndarray, level: float) -> float | None:
+    """The first time [s] ``progress`` reaches ``level``, interpolated between samples; None if never."""
+    above = np.flatnonzero(progress >= level)
+    if not above.size:
+        return None
+    i = int(above[0])
+    if i == 0:
+        return float(tau[0])
+    return float(tau[i - 1] + (level - progress[i - 1]) / (progress[i] - progress[i - 1]) * (tau[i] - tau[i - 1]))

@@ -55,7 +55,7 @@ from jointctl.control.joint_controllers import (DERIVATIVE_ERROR, JointPositionC
                                                 JointVelocityController)
 from jointctl.hardware.interface import EFFORT
 from jointctl.metrics.expectations import saturation_share
-from jointctl.metrics.linear_loops import linear_step
+from jointctl.metrics.linear_loops import LinearStep, linear_step
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.recording.trace import Trace
 from jointctl.scenario.session import Session
@@ -83,11 +83,24 @@ class StepTheory:
     [N or N·m], ``gravity_stiffness`` ∂τ_hold/∂q at q* [N/m or N·m/rad], ``stiffness`` k,
     ``inertia`` M_jj(q*) [kg or kg·m²], ``held_*`` the figures with the other joints held rigidly,
     ``modes`` the coupled loops' modes (ωn [rad/s], ζ, share of the joint's response), dominant
-    first, ``saturated_share_after_step`` of the cycles after the step at the effort limit."""
+    first, ``saturated_share_after_step`` of the cycles after the step at the effort limit.
+    ``linear`` is the linearised loops' response to the step (None where they have none), for
+    :meth:`response`."""
 
     expected: dict[str, float | None] = field(default_factory=dict)
     not_applicable: dict[str, str] = field(default_factory=dict)
     details: dict = field(default_factory=dict)
+    linear: LinearStep | None = None
+
+    def response(self, time_s, step_time_s: float) -> np.ndarray | None:
+        """The joint's position [m or rad] at ``time_s`` [s] as the linearised loops move it, the
+        step at ``step_time_s``: the rest before the step (as the linear model has it), the rest
+        ``rest_position`` after; None without a linear model."""
+        if self.linear is None:
+            return None
+        tau = np.asarray(time_s, dtype=float) - step_time_s
+        step = self.details["step"]
+        return self.details["rest_position"] + step * (self.linear.position(tau) - self.linear.final)
 
     def skip(self, keys, reason: str) -> None:
         """Mark ``keys`` not applicable for ``reason`` (the first reason given stays)."""
@@ -204,6 +217,7 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float) 
     except ValueError as exc:
         theory.skip(TRANSIENT, f"about the rest pose: {exc}")
         return theory
+    theory.linear = response
     theory.details["modes"] = [{"natural_frequency_rad_s": m.natural_frequency_rad_s,
                                 "damping_ratio": m.damping_ratio, "share": m.share} for m in response.modes]
     if not response.oscillating:
