@@ -93,8 +93,9 @@ POINT_MESSAGES = ("pt", "full")
 REST_REPORTS = 2
 #: ``fault`` from a STOP until the controller has answered it and reports the robot at rest.
 STOPPING = "stopping: STOP sent, until the controller reports the robot at rest"
-#: How long a FAILURE reply waits for the STATUS that carries its error code before it is reported [s].
-ERROR_CODE_WAIT_S = 0.1
+#: How long a FAILURE reply waits for the STATUS that carries its error code before it is reported [s]:
+#: two and a half periods of a 10 Hz status stream (ROS-I's robot_status rate on many controllers).
+ERROR_CODE_WAIT_S = 0.25
 
 
 class HardwareUnreachable(JointCtlError):
