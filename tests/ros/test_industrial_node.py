@@ -207,7 +207,8 @@ def test_an_unreachable_controller_is_one_error_line_and_exit_2(ros_env):
                      timeout=60, check=False)
     assert result.returncode == 2
     lines = [line for line in result.stderr.splitlines() if line.strip()]
-    assert lines == [f"jointctl: error: robot_ip: no industrial controller answers on its state port "
+    assert lines == ["jointctl: took one_dof as a built-in robot, controllers industrial",
+                     f"jointctl: error: robot_ip: no industrial controller answers on its state port "
                      f"(Connection refused) (got '127.0.0.1:{port}')"], result.stderr
 
 

@@ -104,6 +104,8 @@ def test_the_cli_reports_a_failure_in_one_line_and_exits_non_zero(write_scenario
                              str(tmp_path / "o")], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
+    assert lines[0] == f"jointctl: took {path} as a scenario"  # then the one line of the error
+    lines = lines[1:]
     assert len(lines) == 1 and lines[0].startswith("jointctl: error: controller: failed at t = 0.200 s"), lines
     assert "joint6_position_controller" in lines[0] and "zero effort" in lines[0]
     assert (tmp_path / "o" / "trace.csv").exists()  # the run went on to its end and was recorded
