@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from jointctl.recording.figures import (DPI, FIGSIZE_IN, MAX_POINTS, Event, Level, Panel, StepMarks, _decimated,
-                                       plot_command_and_position, plot_panels, plot_series, plot_step)
+                                       not_drawn, plot_command_and_position, plot_panels, plot_series, plot_step)
 from tests.recording.svg_figure import SvgFigure
 
 PIXELS = (round(FIGSIZE_IN[1] * DPI), round(FIGSIZE_IN[0] * DPI))  # (rows, cols)
@@ -242,3 +242,18 @@ def test_long_traces_are_drawn_through_their_extremes(tmp_path):
     svg_path = png.with_suffix(".svg")
     assert svg_path.stat().st_size < 400_000
     assert SvgFigure(svg_path).axes[0].yticks[1].max() >= 40.0
+
+
+def test_within_not_drawn_nothing_is_written_but_the_data_are_still_checked(tmp_path, trace):
+    t, command, position = trace
+    marks = StepMarks(step_time_s=0.5, initial_value=-0.2, final_value=-0.5, settle_band=0.02, overshoot_pct=40.0,
+                      peak_time_s=0.7, peak_value=-0.62, rise_start_s=0.52, rise_end_s=0.6, settling_time_s=0.8)
+    with not_drawn():
+        assert plot_series(tmp_path / "y.png", t, {"v": position}, title="v", ylabel="v") == tmp_path / "y.png"
+        plot_command_and_position(tmp_path / "z.png", t, command, position, title="s", unit="m")
+        plot_step(tmp_path / "s.png", t, command, position, title="s", unit="m", marks=marks)
+        with pytest.raises(ValueError, match="shape"):
+            plot_series(tmp_path / "y.png", t, {"v": position[:-1]}, title="v", ylabel="v")
+    assert list(tmp_path.iterdir()) == []
+    plot_series(tmp_path / "y.png", t, {"v": position}, title="v", ylabel="v")
+    assert (tmp_path / "y.png").exists() and (tmp_path / "y.svg").exists()  # drawn again after the block

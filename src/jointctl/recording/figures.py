@@ -18,6 +18,10 @@ lower case, each run of characters other than letters and digits one ``-`` (:fun
 Traces longer than :data:`MAX_POINTS` are drawn through the minimum and maximum of each of
 ``MAX_POINTS / 2`` slices, which a 700 px wide axis shows as the whole trace, at a fraction of the
 file size.
+
+Within :func:`not_drawn` the plot functions check their data and return the path they would have
+written, drawing nothing: for runs whose numbers are wanted and not their pictures (a sweep's
+thousand runs, where drawing would cost more than the physics).
 """
 
 from __future__ import annotations
@@ -25,7 +29,9 @@ from __future__ import annotations
 import os
 import re
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,7 +46,7 @@ from numpy.typing import ArrayLike
 
 from jointctl.recording.units import DisplayScale, display_scale, label
 
-__all__ = ["DPI", "FIGSIZE_IN", "MAX_POINTS", "Event", "Level", "Panel", "StepMarks", "marker_id",
+__all__ = ["DPI", "FIGSIZE_IN", "MAX_POINTS", "Event", "Level", "Panel", "StepMarks", "marker_id", "not_drawn",
            "plot_command_and_position", "plot_panels", "plot_series", "plot_step"]
 
 FIGSIZE_IN = (8.0, 4.5)
@@ -134,6 +140,20 @@ class StepMarks:
     rise_end_s: float | None
     settling_time_s: float | None
     expected_final: float | None = None
+
+
+#: False within :func:`not_drawn` (per thread and task: a context variable).
+_DRAWING: ContextVar[bool] = ContextVar("jointctl_figures_drawing", default=True)
+
+
+@contextmanager
+def not_drawn() -> Iterator[None]:
+    """Within this block the plot functions draw and write nothing (they still check their data)."""
+    token = _DRAWING.set(False)
+    try:
+        yield
+    finally:
+        _DRAWING.reset(token)
 
 
 def marker_id(prefix: str, text: str) -> str:
@@ -354,6 +374,8 @@ def plot_panels(
     for panel in panels:
         _curves(t, panel.series)  # every panel checked before anything is drawn
     _window(t, zoom)
+    if not _DRAWING.get():
+        return Path(path)
     size = size_in or (FIGSIZE_IN[0], FIGSIZE_IN[1] + 2.0 * (len(panels) - 1))
     fig, axes = _new_figure(title, [p.height for p in panels], size)
     for ax, panel in zip(axes, panels):
@@ -469,6 +491,8 @@ def plot_step(
     panel = Panel(series, "position", unit, levels, styles)
     _curves(t, series)
     _window(t, zoom)
+    if not _DRAWING.get():
+        return Path(path)
     fig, axes = _new_figure(title, [1.0])
     ax = axes[0]
     scale = _draw_panel(ax, t, panel, zoom)
