@@ -3,6 +3,11 @@
 The hardware is a MuJoCo simulation of the scenario's robot, unless another hardware (a real
 robot's, e.g. :class:`~jointctl.hardware.industrial.IndustrialHardware`) is given.
 
+Two hooks let a run differ from the robot its controllers know (a sweep's uncertain plants): ``plant``
+makes the simulated robot from the robot's model (a heavier link, more damping), while the controllers
+and their feed-forward keep the nominal model; ``wrap_hardware`` puts the hardware behind another
+interface (commands that arrive late, noisy sensors) before the controllers are given its handles.
+
 A :class:`Session` owns every part of one run and wires the edges to the loop:
 each command source feeds its controller at the start of a cycle, and the
 recorder, when an output folder is given, observes the end of each cycle (and, with ``mcap``, the
@@ -12,6 +17,7 @@ recorder, when an output folder is given, observes the end of each cycle (and, w
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -51,19 +57,30 @@ class Session:
         package_path: tuple[str, ...] = (),
         hardware: HardwareInterface | None = None,
         mcap: bool = False,
+        plant: Callable[[RobotModel], RobotModel] | None = None,
+        wrap_hardware: Callable[[HardwareInterface], HardwareInterface] | None = None,
     ) -> None:
         self.scenario = scenario
+        #: The robot's model: what the controllers (and their feed-forward) and the analyses know.
         self.robot: RobotModel = load_robot_model(scenario.robot.description, search_path=package_path)
+        #: The robot simulated: ``plant(robot)``, or the robot's model itself.
+        self.plant: RobotModel = self.robot
         #: The simulated world (None when the session drives given ``hardware``, e.g. a real robot).
         self.world: MujocoWorld | None = None
         if hardware is None:
+            if plant is not None:
+                self.plant = plant(self.robot)
             settings = WorldSettings(scenario.timestep_s, scenario.gravity_m_s2, scenario.floor)
-            self.world = MujocoWorld(self.robot, settings, initial_positions=scenario.initial_positions,
+            self.world = MujocoWorld(self.plant, settings, initial_positions=scenario.initial_positions,
                                      source=scenario.source)
             hardware = MujocoHardware(self.world)
+        elif plant is not None:
+            raise ConfigError("a changed plant needs the simulated robot; this hardware is given", field="plant")
         elif scenario.objects:
             raise ConfigError("objects need a simulated robot; this hardware has no simulation door",
                               source=scenario.source, field="objects", value=[o.name for o in scenario.objects])
+        if wrap_hardware is not None:
+            hardware = wrap_hardware(hardware)
         for k, obj in enumerate(scenario.objects):
             if self.world.has_body(obj.name):
                 raise ConfigError("a link of the robot already has that name", source=scenario.source,
