@@ -16,10 +16,11 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "jointctl"
 #: Shared helpers below every layer (the package root's ``__init__`` holds only the version).
 FOUNDATION = ("jointctl", "errors", "validate", "paths")
 #: Every package of jointctl, bottom to top: each may import only those before it (and the foundation).
-#: wire: pure codecs; model ... runtime: the loop; then the edges, each family its own package.
+#: wire: pure codecs; model ... runtime: the loop; then the edges, each family its own package (sweep runs
+#: scenarios and may use identification's designs).
 LAYERS = ("wire", "model", "sim", "hardware", "control", "trajectory", "runtime",
           "commands", "metrics", "recording", "visuals",
-          "scenario", "identification", "industrial_controller", "clients", "tuning", "ros", "cli")
+          "scenario", "identification", "sweep", "industrial_controller", "clients", "tuning", "ros", "cli")
 #: The core: what runs inside the loop; the edges sit on it.
 CORE = ("model", "sim", "hardware", "control", "trajectory", "runtime")
 SIMULATOR_FREE = ("control", "trajectory", "runtime")

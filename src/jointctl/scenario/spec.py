@@ -51,6 +51,8 @@ _KEYS = {
     "gravity", "timestep_s", "loop_rate_hz", "floor", "initial_positions", "duration_s",
     "commands", "record", "analysis", "objects", "goals",
 }
+#: Every top-level field a scenario may have (what ``--set`` reaches).
+SCENARIO_FIELDS = frozenset(_KEYS)
 _GOAL_SOURCES = ("trajectory", "file", "coarse_sine", "path")
 _DESCRIPTION_SUFFIXES = (".xacro", ".urdf")
 

@@ -44,7 +44,8 @@ from jointctl.scenario.spec import (
 #: Suffixes of a robot description.
 DESCRIPTION_SUFFIXES = (".urdf", ".xacro")
 #: The manifest's own fields (robot.yaml): a YAML holding these and no ``robot`` is a manifest.
-MANIFEST_FIELDS = frozenset({"description", "controllers", "serve", "ros", "tune", "video", "industrial"})
+MANIFEST_FIELDS = frozenset({"description", "controllers", "serve", "ros", "tune", "video", "industrial",
+                             "payload_link"})
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,126 @@
+"""A sweep, start to end: :func:`run_sweep`.
+
+1. The variations are parsed and checked against the target before anything runs: every field exists (the
+   nearest name when not), every grid and list value is one the field takes (a distribution's centre
+   stands for it); bad input raises :class:`~jointctl.errors.ConfigError` naming the field and value.
+2. The nominal run (the target with nothing varied) runs here: its metrics are the ones the spec may bound,
+   and the summary's and figures' reference.
+3. The runs go to the engine (:class:`~jointctl.sweep.engine.Engine`) as independent tasks; each returns its
+   row. A failed run is a row naming its failure.
+4. The rows are judged against the spec, and, with ``out_dir``, written with the figures.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from jointctl.errors import ConfigError
+from jointctl.model.loader import load_robot_model
+from jointctl.scenario.analyses import check_analysis
+from jointctl.scenario.targets import resolve_target
+from jointctl.sweep.criteria import Spec, parse_spec
+from jointctl.sweep.engine import Engine, ProgressLine
+from jointctl.sweep.figures import write_figures
+from jointctl.sweep.plant import check_model_value, model_target, payload_link
+from jointctl.sweep.results import SweepResult
+from jointctl.sweep.runner import ROBOT_RUN_S, Row, RunTask, build_session, evaluate, settings_of
+from jointctl.sweep.variations import (LATENCY, MODEL_PREFIX, PAYLOAD, SPECIAL_FIELDS, Variation, check_samples,
+                                       expand, variations_from)
+
+
+def run_sweep(target: str, variations: Iterable[str | Variation], *, samples: int | None = None, seed: int = 0,
+              spec: str | Spec | None = None, scheduler: str | None = None, workers: int | None = None,
+              in_process: bool = False, engine: Engine | None = None, out_dir: str | Path | None = None,
+              controllers: str | None = None, overrides: Iterable[str] = (), package_path: Iterable[str] = (),
+              nominal: bool = True, figures: bool = True,
+              progress: bool | Callable[[Row], None] = False) -> SweepResult:
+    """Run ``target`` (a scenario or robot, as ``jointctl run`` takes it) once per combination of
+    ``variations`` (``"FIELD=VALUES"`` items or :class:`Variation`; see :mod:`jointctl.sweep.variations`), with
+    ``samples`` draws of the distributions seeded by ``seed``, and return the rows.
+
+    ``overrides`` (``--set`` items) and ``controllers`` apply to every run and to the nominal one. The runs go to
+    ``engine`` when given (left open), else to one made for the call: the cluster at ``scheduler``, a local
+    cluster of ``workers`` processes (default one per core), or this process (``in_process``). ``spec``
+    (``"overshoot_pct<=10,settling_time_s<=0.3"``) judges each row. ``nominal=False`` skips the nominal run
+    (and with it the check of the spec's metric names). With ``out_dir``: ``results.csv``, ``summary.json``,
+    ``traces.npz`` and (``figures``) the PNGs. ``progress``: True for a progress line on stderr
+    (:class:`~jointctl.sweep.engine.ProgressLine`), or a function called with each row as it arrives.
+    """
+    found = variations_from(variations)
+    count = check_samples(samples, seed, found)
+    spec = spec if isinstance(spec, Spec) else parse_spec(spec)
+    base = RunTask(-1, target, {}, seed, controllers, tuple(overrides), tuple(package_path))
+    own = engine is None
+    if own:
+        engine = Engine(scheduler=scheduler, workers=workers, in_process=in_process)  # its arguments checked here
+    check_variations(base, found)
+    nominal_row = None
+    if nominal:
+        nominal_row = evaluate(base)
+        if nominal_row.error is None:
+            spec.check_metrics(nominal_row.metrics)
+    tasks = [RunTask(k, target, values, seed, controllers, base.overrides, base.package_path)
+             for k, values in enumerate(expand(found, count, seed))]
+    try:
+        engine.start()
+        line = ProgressLine(len(tasks)) if progress is True else None
+        start = time.perf_counter()
+        rows, interrupted = engine.run(tasks, line or progress or None)
+        wall = time.perf_counter() - start
+        if line is not None:
+            line.close()
+    finally:
+        if own:
+            engine.close()
+    for row in rows:
+        row.passed = spec.verdict(row.metrics) if row.error is None else None
+    result = SweepResult(target, found, spec, count, seed, len(tasks), rows, nominal_row, interrupted,
+                         engine.description, wall)
+    if out_dir is not None:
+        result.write(out_dir)
+        if figures:
+            write_figures(result, out_dir)
+    return result
+
+
+def check_variations(base: RunTask, variations: tuple[Variation, ...]) -> None:
+    """Refuse, before anything runs, a field the target does not have and a grid or list value it does not take
+    (ConfigError naming the field and the value). Distributions are checked at their centre; their draws are
+    checked run by run (a draw out of range is that run's error)."""
+    target = resolve_target(base.target, controllers=base.controllers, overrides=base.overrides,
+                            robot_defaults=[f"duration_s={ROBOT_RUN_S}"])
+    scenario = target.scenario
+    robot = None
+    if any(v.field.startswith(MODEL_PREFIX) or v.field == PAYLOAD for v in variations):
+        robot = load_robot_model(scenario.robot.description, search_path=base.package_path)
+    for variation in variations:
+        field = variation.field
+        values = [variation.representative] if variation.is_distribution else list(variation.values)
+        if field.startswith(MODEL_PREFIX):
+            _, _, attribute = model_target(robot, field)
+            for value in values:
+                check_model_value(field, attribute, value)
+        elif field in SPECIAL_FIELDS:
+            if field == PAYLOAD:
+                payload_link(robot, scenario.robot.extras, str(scenario.robot.manifest or ""))
+            for value in values:
+                settings_of({field: value})
+                if field == LATENCY and not variation.is_distribution and value != round(value):
+                    raise ConfigError("a grid or list of latencies must be whole numbers of cycles", source="--vary",
+                                      field=field, value=value)
+        else:
+            for value in values:
+                _check_session(base, {field: value})
+    _check_session(base, {v.field: v.representative for v in variations})
+
+
+def _check_session(base: RunTask, values: dict) -> None:
+    """Build (not run) the session of ``base`` with ``values``: every check a run makes before it moves."""
+    task = RunTask(base.index, base.target, values, base.seed, base.controllers, base.overrides, base.package_path)
+    with build_session(task, None) as session:
+        check_analysis(session)
+
+
+__all__ = ["check_variations", "run_sweep"]

@@ -1,0 +1,114 @@
+"""results.csv, summary.json, traces.npz and the figures, from rows made by hand."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from jointctl.sweep.criteria import parse_spec
+from jointctl.sweep.figures import write_figures
+from jointctl.sweep.results import SweepResult, load_traces
+from jointctl.sweep.runner import Row
+from jointctl.sweep.variations import parse_variation
+
+
+def step_trace(wn: float, zeta: float) -> dict:
+    """A unit step at 0.5 s from -0.2 to -0.5, second order, 300 samples."""
+    t = np.linspace(0.0, 3.0, 300)
+    tau = np.clip(t - 0.5, 0.0, None)
+    wd = wn * math.sqrt(1 - zeta**2)
+    u = 1 - np.exp(-zeta * wn * tau) * (np.cos(wd * tau) + zeta / math.sqrt(1 - zeta**2) * np.sin(wd * tau))
+    return {"joint": "joint1", "time_s": t, "position": -0.2 - 0.3 * u,
+            "reference": np.where(t >= 0.5, -0.5, -0.2)}
+
+
+def row(index, payload, p, overshoot, settling, error=None):
+    metrics = {} if error else {"overshoot_pct": overshoot, "settling_time_s": settling, "initial_value": -0.2,
+                                "final_value": -0.5}
+    zeta = 0.25 - 0.02 * payload
+    return Row(index, {"payload_kg": payload, "controllers.c.pid.p": p}, metrics, error,
+               None if error else step_trace(20.0 / math.sqrt(1 + payload), zeta))
+
+
+@pytest.fixture
+def result():
+    rows = [row(0, 0.0, 200, 30.5, 0.71), row(1, 0.0, 400, 44.7, 0.2), row(2, 5.0, 200, 61.0, None),
+            row(3, 5.0, 400, None, None, error="PhysicsError: mjWARN_BADQACC: unstable")]
+    spec = parse_spec("overshoot_pct<=50,settling_time_s<=0.8")
+    for r in rows:
+        r.passed = spec.verdict(r.metrics) if r.error is None else None
+    nominal = row(-1, 0.0, 400, 44.7, 0.2)
+    variations = (parse_variation("payload_kg=0:5:2"), parse_variation("controllers.c.pid.p=[200, 400]"))
+    return SweepResult("one_dof_step", variations, spec, 1, 0, 4, rows, nominal, False, "this process", 1.5)
+
+
+def test_the_table_has_a_row_a_run_with_values_metrics_verdict_and_error(result, tmp_path):
+    result.write(tmp_path)
+    with (tmp_path / "results.csv").open() as f:
+        table = list(csv.reader(f))
+    assert table[0] == ["index", "payload_kg", "controllers.c.pid.p", "overshoot_pct", "settling_time_s",
+                        "initial_value", "final_value", "pass", "error"]
+    assert table[1] == ["0", "0.0", "200", "30.5", "0.71", "-0.2", "-0.5", "true", ""]
+    assert table[3][3:5] == ["61.0", ""] and table[3][7] == "false"  # never settled: not measured, fails
+    assert table[4][3:8] == ["", "", "", "", ""] and table[4][8] == "PhysicsError: mjWARN_BADQACC: unstable"
+
+
+def test_the_summary_counts_and_names_each_metrics_worst_case(result, tmp_path):
+    result.write(tmp_path)
+    text = (tmp_path / "summary.json").read_text()
+    summary = json.loads(text)  # strict JSON: parsed back without NaN
+    assert "NaN" not in text and "Infinity" not in text
+    assert (summary["runs"], summary["finished"], summary["passed"], summary["failed"], summary["errors"]) == \
+        (4, 4, 2, 1, 1)
+    assert summary["errors_by_kind"] == {"PhysicsError": 1}
+    overshoot = summary["metrics"]["overshoot_pct"]
+    assert overshoot["worst"] == {"value": 61.0, "index": 2, "values": {"payload_kg": 5.0, "controllers.c.pid.p": 200},
+                                  "by": "--spec overshoot_pct<=50"}
+    assert overshoot["min"]["value"] == 30.5 and overshoot["max"]["index"] == 2 and overshoot["nominal"] == 44.7
+    settling = summary["metrics"]["settling_time_s"]
+    assert settling["worst"]["value"] is None and settling["worst"]["index"] == 2  # never settled is the worst
+    assert settling["not_measured"] == 1 and settling["measured"] == 2
+    # A metric the spec does not bound: the worst is the furthest from the nominal run's.
+    assert summary["metrics"]["initial_value"]["worst"]["by"] == "furthest from the nominal run"
+
+
+def test_a_bound_from_below_is_worst_at_its_smallest(result):
+    result.spec = parse_spec("overshoot_pct>=40")
+    value, worst = result.worst("overshoot_pct")
+    assert value == 30.5 and worst.index == 0
+
+
+def test_traces_are_kept_per_run(result, tmp_path):
+    result.write(tmp_path)
+    traces = load_traces(tmp_path / "traces.npz")
+    assert sorted(traces) == [0, 1, 2]
+    assert traces[2]["joint"] == "joint1"
+    assert np.array_equal(traces[2]["position"], result.rows[2].trace["position"])
+
+
+def test_the_figures_are_drawn_for_one_field_two_fields_and_the_responses(result, tmp_path):
+    written = {p.name for p in write_figures(result, tmp_path)}
+    assert written == {"overshoot_pct_vs_payload_kg.png", "overshoot_pct_vs_controllers_c_pid_p.png",
+                       "settling_time_s_vs_payload_kg.png", "settling_time_s_vs_controllers_c_pid_p.png",
+                       "heatmap_overshoot_pct.png", "heatmap_settling_time_s.png", "responses.png"}
+    assert all((tmp_path / name).stat().st_size > 10_000 for name in written)
+
+
+def test_distributions_are_drawn_as_dots_coloured_by_the_metric(result, tmp_path):
+    result.variations = (parse_variation("payload_kg=uniform(0, 5)"), result.variations[1])
+    assert "heatmap_overshoot_pct.png" in {p.name for p in write_figures(result, tmp_path)}
+
+
+def test_without_a_spec_the_first_metrics_are_drawn_and_nothing_is_judged(result, tmp_path):
+    result.spec = parse_spec(None)
+    for r in result.rows:
+        r.passed = None
+    result.variations = result.variations[:1]
+    written = {p.name for p in write_figures(result, tmp_path)}
+    assert "final_value_vs_payload_kg.png" in written and not any(n.startswith("heatmap") for n in written)
+    summary = result.summary()
+    assert summary["passed"] is None and summary["spec"] is None
