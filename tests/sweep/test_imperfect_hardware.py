@@ -106,8 +106,8 @@ def test_a_wrapper_that_changes_nothing_gives_the_same_run_bit_for_bit(tmp_path)
 
 def test_latency_takes_damping_away_as_a_delay_in_the_loop_does():
     # A delay τ = N·dt in the P loop: m s² + b s + Kp e^(-sτ) ≈ m s² + (b - Kp τ) s + Kp (first order in sτ), so
-    # ζ drops by Kp τ / (2√(Kp m)) while ωn stays. The next term, Kp τ² s²/2, adds Kp τ²/2 to the mass: 0.4 % of
-    # ωn and ζ at 4 cycles, and the 1 kHz loop's own discretisation is common to both runs, so 2 % of the drop.
+    # ζ drops by Kp τ / (2√(Kp m)) while ωn stays. The next term adds Kp τ²/2 to the mass (3.2 g, 0.3 %, at 4
+    # cycles); the 1 kHz loop's own discretisation is common to both runs: 2 % of the drop covers both.
     rows = {n: evaluate(RunTask(0, "one_dof_step", {"latency_cycles": n}, overrides=("duration_s=2",)))
             for n in (0, 4)}
     assert all(r.error is None for r in rows.values()), [r.error for r in rows.values()]

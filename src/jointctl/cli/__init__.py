@@ -18,6 +18,8 @@
                      (or --overshoot-pct P --settling-s T)
     identify, bode, autotune: --max-effort N --max-velocity V --workspace LOWER:UPPER --dry-run
                      (limits planned within and watched: docs/real-robots.md)
+    jointctl sweep SCENARIO --vary FIELD=VALUES [--samples N --seed S] [--spec M<=X] [--scheduler ADDR]
+                     a scenario over grids and distributions (gains, plant, payload, latency, noise) on Dask
 
 Every error a user can cause is printed as one line naming the file, field
 and value, with exit status 2.
@@ -29,12 +31,12 @@ import argparse
 import sys
 
 from jointctl import __version__
-from jointctl.cli import analyses, clients, controller, experiments, init, serve, tune
+from jointctl.cli import analyses, clients, controller, experiments, init, serve, sweep, tune
 from jointctl.errors import JointCtlError
 
 EXIT_USAGE = 2
 #: The command families, in the order ``jointctl --help`` lists their commands.
-FAMILIES = (experiments, init, serve, clients, tune, controller, analyses)
+FAMILIES = (experiments, init, serve, clients, tune, controller, analyses, sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -107,7 +107,8 @@ def _video_settings(args: argparse.Namespace):
 
 def _demo(args: argparse.Namespace) -> int:
     from jointctl.scenario.run import run_demo
+    from jointctl.sweep.demo import demo_section
 
-    report = run_demo(args.out)
+    report = run_demo(args.out, sections=[demo_section])
     print(f"wrote {report}")
     return 0

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -78,26 +78,29 @@ def run_scenario(
     return metrics
 
 
-def run_demo(out_dir: str | Path, names: Iterable[str] | None = None) -> Path:
+def run_demo(out_dir: str | Path, names: Iterable[str] | None = None,
+             sections: Iterable[Callable[[Path], str]] = ()) -> Path:
     """Run every built-in experiment (a scenario with an analysis), or ``names``, and write
-    ``report.md``; returns its path."""
+    ``report.md``; returns its path. ``sections``: more of the report, each a function of the output
+    folder returning its Markdown (the edges above this package add theirs, e.g. a sweep)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    sections = []
+    parts = []
     scenarios = [load_scenario(name) for name in (names or builtin_scenarios())]
     for scenario in scenarios:
         if names is None and scenario.analysis is None:
             continue  # a robot to drive (arm7dof_streamer), not an experiment
         name = scenario.name
         metrics = run_scenario(scenario, out / name, video=DEMO_VIDEO)
-        sections.append(_report_section(scenario, metrics, out / name, out))
+        parts.append(_report_section(scenario, metrics, out / name, out))
+    parts += [section(out) for section in sections]
     report = out / "report.md"
     report.write_text(
         "# jointctl demo report\n\n"
         "Each experiment ran in-process on MuJoCo at the scenario's loop rate; figures and\n"
         "`metrics.json` are in the experiment's folder. *Expected* values come from the model\n"
         "(moving mass, joint damping, controller gains, gravity) and textbook formulas.\n\n"
-        + "\n".join(sections)
+        + "\n".join(parts)
     )
     return report
 

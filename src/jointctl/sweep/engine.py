@@ -44,6 +44,15 @@ def jointctl_version() -> str:
     return __version__
 
 
+def evaluate_on_worker(task: RunTask) -> Row:
+    """:func:`~jointctl.sweep.runner.evaluate` on a Dask worker, the row noting the worker's address."""
+    from distributed import get_worker
+
+    row = evaluate(task)
+    row.worker = get_worker().address
+    return row
+
+
 class Engine:
     """Runs tasks on a local Dask cluster (default: ``workers`` processes, one per core), on the cluster at
     ``scheduler``, or, with ``in_process``, here. Use it in a ``with`` block; one engine may run several
@@ -101,8 +110,11 @@ class Engine:
 
         count = self.workers or os.cpu_count() or 1
         with _sigint_ignored_by_children():
+            # No dashboard; the scheduler's small HTTP server (health, metrics) on a port the system picks, not
+            # Dask's 8787, which another cluster on the machine may hold.
             self.cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, silence_logs=logging.ERROR)
+                                        dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"},
+                                        silence_logs=logging.ERROR)
         self.client = Client(self.cluster)
         self.client.run(jointctl_version)
         self.description = f"a local Dask cluster of {count} worker process{'es' if count != 1 else ''}"
@@ -169,7 +181,7 @@ class Engine:
         token = uuid.uuid4().hex[:8]
         keys = [f"jointctl-run-{token}-{task.index}" for task in tasks]
         by_key = dict(zip(keys, tasks))
-        futures = self.client.map(evaluate, tasks, key=keys, pure=False)
+        futures = self.client.map(evaluate_on_worker, tasks, key=keys, pure=False)
         try:
             for future in as_completed(futures):
                 try:
@@ -254,4 +266,4 @@ class _sigint_ignored_by_children:
             signal.signal(signal.SIGINT, self._previous)
 
 
-__all__ = ["CONNECT_TIMEOUT_S", "Engine", "ProgressLine", "jointctl_version"]
+__all__ = ["CONNECT_TIMEOUT_S", "Engine", "ProgressLine", "evaluate_on_worker", "jointctl_version"]

@@ -65,7 +65,8 @@ class Row:
     """One run's result: its ``values``, its analysis's ``metrics`` (numbers, None for not measured), or the
     ``error`` that ended it (``"PhysicsError: ..."``); ``trace`` the analysed joint's decimated response
     (``joint``, ``time_s`` [s], ``position`` and ``reference`` [m or rad]); ``run_s`` the run's own wall-clock
-    time in its worker [s]; ``passed`` the verdict of the sweep's spec (None without one, or on error)."""
+    time in its worker [s]; ``passed`` the verdict of the sweep's spec (None without one, or on error); ``worker``
+    the address of the Dask worker that ran it (None in this process; not part of the table)."""
 
     index: int
     values: dict[str, Any]
@@ -74,6 +75,7 @@ class Row:
     trace: dict[str, Any] | None = None
     run_s: float = 0.0
     passed: bool | None = None
+    worker: str | None = None
 
 
 @dataclass(frozen=True)

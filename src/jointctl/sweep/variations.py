@@ -240,8 +240,9 @@ def _as_drawn(field: str, value: float) -> float | int:
 
 
 def noise_seed(seed: int, index: int) -> tuple[int, int, int]:
-    """The seed of run ``index``'s sensor noise (a stream apart from the distributions' draws)."""
-    return (seed, index, 1)
+    """The seed of run ``index``'s sensor noise (a stream apart from the distributions' draws; index -1 is the
+    sweep's check of its target, before the runs)."""
+    return (seed, index + 1, 1)
 
 
 def yaml_text(value: Any) -> str:

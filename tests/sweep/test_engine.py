@@ -1,0 +1,234 @@
+"""The real engine: Dask's own ``dask scheduler`` and ``dask worker`` processes on loopback and across two network
+namespaces, a local cluster of one worker, and this process give the same table; Ctrl-C keeps the finished rows.
+
+The workers import this tree's jointctl (PYTHONPATH=src). Namespaces need root and ``ip``: without them the
+across-hosts test skips, unless JOINTCTL_REQUIRE_ROS is set (as for the ROS two-host test), when it fails.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import psutil
+import pytest
+
+from jointctl.cli import main
+from jointctl.sweep import Engine, run_sweep
+from jointctl.sweep import engine as engine_module
+
+pytestmark = pytest.mark.wall_clock
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+DASK = [sys.executable, "-m", "dask"]
+#: Two payloads, two durations (0.4 s ends before the step at 0.5 s: those runs fail in the analysis) and two draws of
+#: sensor noise: 8 runs whose table depends on the seed's draws and each run's noise stream.
+VARY = ["payload_kg=[0, 2.5]", "duration_s=[1.5, 0.4]", "noise.position=uniform(0, 1e-4)"]
+SAMPLES, SEED = 2, 11
+
+
+def env() -> dict:
+    values = dict(os.environ)
+    values["PYTHONPATH"] = os.pathsep.join(filter(None, [str(SRC), values.get("PYTHONPATH")]))
+    return values
+
+
+def stop(processes) -> None:
+    for process in reversed(processes):
+        if process.poll() is None:
+            process.terminate()
+    for process in reversed(processes):
+        try:
+            process.wait(15)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait(5)
+
+
+def wait_for(predicate, what: str, timeout_s: float = 60.0):
+    deadline = time.monotonic() + timeout_s
+    while not (value := predicate()):
+        assert time.monotonic() < deadline, f"waited {timeout_s:g} s for {what}"
+        time.sleep(0.1)
+    return value
+
+
+def sweep(out: Path, **engine) -> bytes:
+    result = run_sweep("one_dof_step", VARY, samples=SAMPLES, seed=SEED, out_dir=out, figures=False, **engine)
+    assert len(result.rows) == 8 and not result.interrupted
+    return (out / "results.csv").read_bytes()
+
+
+@pytest.fixture
+def loopback_cluster(tmp_path):
+    """``dask scheduler`` on 127.0.0.1 at a port it picks (told in its scheduler file) and two ``dask worker``
+    processes of one thread each; stopped afterwards."""
+    file = tmp_path / "scheduler.json"
+    processes = [subprocess.Popen([*DASK, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                   "--dashboard-address", ":0", "--scheduler-file", str(file)], env=env(), cwd=tmp_path,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        wait_for(lambda: file.is_file() and file.stat().st_size > 0, "the scheduler file")
+        address = json.loads(file.read_text())["address"]
+        for k in range(2):
+            processes.append(subprocess.Popen(
+                [*DASK, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", "127.0.0.1",
+                 "--name", f"w{k}", "--local-directory", str(tmp_path / f"w{k}")], env=env(), cwd=tmp_path,
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        from distributed import Client
+
+        with Client(address, timeout=30) as client:
+            client.wait_for_workers(2, timeout=60)
+        yield address
+    finally:
+        stop(processes)
+
+
+def test_the_same_seed_gives_the_same_table_here_on_one_worker_and_on_two(loopback_cluster, tmp_path):
+    here = sweep(tmp_path / "here", in_process=True)
+    assert sweep(tmp_path / "one", workers=1) == here
+    with Engine(scheduler=loopback_cluster) as engine:
+        assert engine.worker_count == 2
+        result = run_sweep("one_dof_step", VARY, samples=SAMPLES, seed=SEED, engine=engine,
+                           out_dir=tmp_path / "two", figures=False)
+    assert (tmp_path / "two" / "results.csv").read_bytes() == here
+    assert len({row.worker for row in result.rows}) == 2  # both workers ran some
+    # The failing samples are rows naming their failure; the others measured.
+    with (tmp_path / "two" / "results.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    short = [r for r in rows if r["duration_s"] == "0.4"]
+    assert len(short) == 4 and all(r["error"].startswith("AnalysisError: step_time_s must lie inside the record")
+                                   and r["overshoot_pct"] == "" for r in short)
+    assert all(r["error"] == "" and float(r["overshoot_pct"]) > 0 for r in rows if r["duration_s"] == "1.5")
+
+
+def test_an_address_where_no_scheduler_answers_is_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(engine_module, "CONNECT_TIMEOUT_S", 1.0)
+    assert main(["sweep", "one_dof_step", "--vary", "payload_kg=[0]", "--scheduler", "tcp://127.0.0.1:9",
+                 "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("jointctl: error: --scheduler: no Dask scheduler answers there") and err.count("\n") == 1
+
+
+def test_ctrl_c_cancels_the_rest_stops_the_workers_and_keeps_the_finished_rows(tmp_path):
+    out = tmp_path / "sweep"
+    command = [sys.executable, "-m", "jointctl.cli", "sweep", "one_dof_step", "--vary", "payload_kg=0:5:400",
+               "--workers", "2", "--no-figures", "--out", str(out)]
+    process = subprocess.Popen(command, env=env(), cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, start_new_session=True)
+    try:
+        first = process.stderr.readline()  # the first progress line: a tenth of the runs done
+        assert first.startswith("sweep: "), first + process.stderr.read()
+        workers = psutil.Process(process.pid).children(recursive=True)
+        assert workers, "the local cluster's processes"
+        os.killpg(process.pid, signal.SIGINT)  # as a terminal's Ctrl-C: to the whole foreground group
+        _, err = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130, err
+    assert "interrupted after" in err
+    with (out / "results.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert 40 <= len(rows) < 400
+    assert all(r["error"] == "" for r in rows)  # cancelled runs are not rows, finished ones all measured
+    assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+    gone, alive = psutil.wait_procs(workers, timeout=30)
+    assert not alive, [p.pid for p in alive]
+
+
+# -- across two hosts ------------------------------------------------------------------------------------------
+ADDR_A, ADDR_B = "10.201.0.1", "10.201.0.2"
+PORT = 8786
+
+
+def _can_make_namespaces() -> str | None:
+    if os.geteuid() != 0:
+        return "needs root for network namespaces"
+    if shutil.which("ip") is None:
+        return "needs iproute2's ip"
+    return None
+
+
+def _ip(*args: str, check: bool = True) -> subprocess.CompletedProcess:
+    return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=10, check=check)
+
+
+@pytest.fixture
+def hosts():
+    """Two namespaces (A, B) joined by a veth pair; deleted afterwards, whatever happened."""
+    reason = _can_make_namespaces()
+    if reason:
+        if os.environ.get("JOINTCTL_REQUIRE_ROS"):
+            pytest.fail(f"JOINTCTL_REQUIRE_ROS is set but {reason}")
+        pytest.skip(reason)
+    tag = uuid.uuid4().hex[:6]
+    ns_a, ns_b = f"js_a_{tag}", f"js_b_{tag}"
+    veth_a, veth_b = f"jsva{tag}", f"jsvb{tag}"  # at most 15 characters
+    try:
+        _ip("netns", "add", ns_a)
+        _ip("netns", "add", ns_b)
+        _ip("link", "add", veth_a, "type", "veth", "peer", "name", veth_b)
+        _ip("link", "set", veth_a, "netns", ns_a)
+        _ip("link", "set", veth_b, "netns", ns_b)
+        for ns, dev, addr in ((ns_a, veth_a, ADDR_A), (ns_b, veth_b, ADDR_B)):
+            _ip("-n", ns, "addr", "add", f"{addr}/30", "dev", dev)
+            _ip("-n", ns, "link", "set", dev, "up")
+            _ip("-n", ns, "link", "set", "lo", "up")
+    except subprocess.CalledProcessError as exc:
+        for ns in (ns_a, ns_b):
+            _ip("netns", "del", ns, check=False)
+        if os.environ.get("JOINTCTL_REQUIRE_ROS"):
+            raise
+        pytest.skip(f"network namespaces unavailable here: {exc.stderr.strip()}")
+    try:
+        yield ns_a, ns_b
+    finally:
+        for ns in (ns_a, ns_b):
+            _ip("netns", "del", ns, check=False)
+
+
+def _in(ns: str, *cmd: str) -> list[str]:
+    return ["ip", "netns", "exec", ns, *cmd]
+
+
+def test_a_sweep_from_host_b_runs_on_workers_of_both_hosts_and_gives_the_same_table(hosts, tmp_path):
+    ns_a, ns_b = hosts
+    address = f"tcp://{ADDR_A}:{PORT}"
+    processes = []
+    try:
+        processes.append(subprocess.Popen(_in(ns_a, *DASK, "scheduler", "--host", ADDR_A, "--port", str(PORT),
+                                              "--no-dashboard", "--dashboard-address", ":0"), env=env(), cwd=tmp_path,
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        for ns, addr in ((ns_a, ADDR_A), (ns_b, ADDR_B)):
+            processes.append(subprocess.Popen(
+                _in(ns, *DASK, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard", "--host", addr,
+                    "--local-directory", str(tmp_path / f"worker_{addr}")), env=env(), cwd=tmp_path,
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        ready = subprocess.run(_in(ns_b, sys.executable, "-c", (
+            "from distributed import Client\n"
+            f"c = Client({address!r}, timeout=60)\n"
+            "c.wait_for_workers(2, timeout=60)\n"
+            "print(sorted(w.split(':')[1] for w in c.scheduler_info()['workers']))")),
+            env=env(), capture_output=True, text=True, timeout=150)
+        assert ready.returncode == 0, ready.stderr[-2000:]
+        assert ready.stdout.strip() == str(sorted(["//" + ADDR_A, "//" + ADDR_B]))
+        out = tmp_path / "from_b"
+        args = ["sweep", "one_dof_step", *[a for v in VARY for a in ("--vary", v)], "--samples", str(SAMPLES),
+                "--seed", str(SEED), "--no-figures", "--scheduler", address, "--out", str(out)]
+        run = subprocess.run(_in(ns_b, sys.executable, "-m", "jointctl.cli", *args), env=env(), cwd=tmp_path,
+                             capture_output=True, text=True, timeout=300)
+        assert run.returncode == 0, run.stderr[-2000:]
+        assert f"on the Dask cluster at {address} (2 workers)" in run.stderr
+    finally:
+        stop(processes)
+    here = sweep(tmp_path / "here", in_process=True)
+    assert (out / "results.csv").read_bytes() == here
