@@ -123,3 +123,21 @@ def test_a_robot_yaml_names_its_payload_link(tmp_path):
     row = evaluate(RunTask(0, str(folder), {"payload_kg": 1.0}))
     assert row.error.startswith("ConfigError") and "payload_link" in row.error and "link9" in row.error
     assert np.isfinite(row.run_s)
+
+
+def test_an_analysis_that_runs_its_scenario_again_runs_it_on_the_same_varied_robot(tmp_path):
+    from jointctl.recording.trace import load_trace
+    from jointctl.scenario.analyses.common import run_variant
+    from jointctl.scenario.session import session_defaults
+
+    scenario = load_scenario("one_dof_step", ["duration_s=1"])
+    with session_defaults(plant=lambda robot: varied_plant(robot, {"model.joint1.damping": 30.0})):
+        with Session(scenario, out_dir=tmp_path / "run") as session:
+            session.run()
+        assert session.plant.joint("joint1").damping == 30.0
+        again = run_variant(session, tmp_path / "again", {})
+    with Session(scenario, out_dir=tmp_path / "nominal") as nominal:
+        nominal.run()
+    varied, plain = load_trace(session.trace_path), load_trace(nominal.trace_path)
+    assert np.array_equal(again.joint("joint1", "position"), varied.joint("joint1", "position"))
+    assert not np.array_equal(plain.joint("joint1", "position"), varied.joint("joint1", "position"))

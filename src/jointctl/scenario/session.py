@@ -6,7 +6,9 @@ robot's, e.g. :class:`~jointctl.hardware.industrial.IndustrialHardware`) is give
 Two hooks let a run differ from the robot its controllers know (a sweep's uncertain plants): ``plant``
 makes the simulated robot from the robot's model (a heavier link, more damping), while the controllers
 and their feed-forward keep the nominal model; ``wrap_hardware`` puts the hardware behind another
-interface (commands that arrive late, noisy sensors) before the controllers are given its handles.
+interface (commands that arrive late, noisy sensors) before the controllers are given its handles. Within
+:func:`session_defaults` every session built without hooks of its own gets the block's: an analysis that runs
+its scenario again (in the chapter's mode, with other gains) then runs it on the same varied robot.
 
 A :class:`Session` owns every part of one run and wires the edges to the loop:
 each command source feeds its controller at the start of a cycle, and the
@@ -17,7 +19,9 @@ recorder, when an output folder is given, observes the end of each cycle (and, w
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +47,22 @@ from jointctl.trajectory.messages import JointTrajectory
 
 TRACE_FILE = "trace.csv"
 
+PlantChange = Callable[[RobotModel], RobotModel]
+HardwareWrapper = Callable[[HardwareInterface], HardwareInterface]
+#: The hooks of :func:`session_defaults` (per thread and task: a context variable).
+_DEFAULTS: ContextVar[tuple[PlantChange | None, HardwareWrapper | None]] = ContextVar(
+    "jointctl_session_defaults", default=(None, None))
+
+
+@contextmanager
+def session_defaults(plant: PlantChange | None = None, wrap_hardware: HardwareWrapper | None = None) -> Iterator[None]:
+    """Within this block a :class:`Session` built without a ``plant`` (or ``wrap_hardware``) of its own gets this one."""
+    token = _DEFAULTS.set((plant, wrap_hardware))
+    try:
+        yield
+    finally:
+        _DEFAULTS.reset(token)
+
 
 class Session:
     """Everything one scenario run needs, built and validated before anything moves."""
@@ -57,9 +77,13 @@ class Session:
         package_path: tuple[str, ...] = (),
         hardware: HardwareInterface | None = None,
         mcap: bool = False,
-        plant: Callable[[RobotModel], RobotModel] | None = None,
-        wrap_hardware: Callable[[HardwareInterface], HardwareInterface] | None = None,
+        plant: PlantChange | None = None,
+        wrap_hardware: HardwareWrapper | None = None,
     ) -> None:
+        default_plant, default_wrapper = _DEFAULTS.get()
+        if hardware is None:
+            plant = plant or default_plant
+        wrap_hardware = wrap_hardware or default_wrapper
         self.scenario = scenario
         #: The robot's model: what the controllers (and their feed-forward) and the analyses know.
         self.robot: RobotModel = load_robot_model(scenario.robot.description, search_path=package_path)

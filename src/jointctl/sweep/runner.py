@@ -28,7 +28,7 @@ from jointctl.hardware.imperfect import ImperfectHardware
 from jointctl.recording.figures import not_drawn
 from jointctl.recording.trace import load_trace
 from jointctl.scenario.analyses import check_analysis
-from jointctl.scenario.session import Session
+from jointctl.scenario.session import Session, session_defaults
 from jointctl.scenario.targets import resolve_target
 from jointctl.sweep.plant import check_payload, payload_link, varied_plant
 from jointctl.sweep.variations import (LATENCY, MODEL_PREFIX, NOISE_POSITION, NOISE_VELOCITY, PAYLOAD, noise_seed,
@@ -132,6 +132,12 @@ def latency_cycles(value: Any) -> int:
 
 def build_session(task: RunTask, out_dir: str | Path | None) -> Session:
     """The task's session, built and checked, not run (its trace goes to ``out_dir``; None: not recorded)."""
+    scenario, plant, wrap = task_hooks(task)
+    return Session(scenario, out_dir=out_dir, package_path=task.package_path, plant=plant, wrap_hardware=wrap)
+
+
+def task_hooks(task: RunTask):
+    """(the task's scenario, its plant change or None, its hardware wrapper or None)."""
     settings = settings_of(task.values)
     target = resolve_target(task.target, controllers=task.controllers,
                             overrides=[*task.overrides, *settings.overrides],
@@ -148,9 +154,7 @@ def build_session(task: RunTask, out_dir: str | Path | None) -> Session:
                                  position_noise=settings.position_noise, velocity_noise=settings.velocity_noise,
                                  seed=noise_seed(task.seed, task.index))
 
-    return Session(scenario, out_dir=out_dir, package_path=task.package_path,
-                   plant=plant if settings.changes_plant else None,
-                   wrap_hardware=wrap if settings.changes_hardware else None)
+    return scenario, plant if settings.changes_plant else None, wrap if settings.changes_hardware else None
 
 
 def evaluate(task: RunTask) -> Row:
@@ -174,9 +178,11 @@ def describe(exc: BaseException) -> str:
 
 
 def _run(task: RunTask) -> tuple[dict[str, float | None], dict[str, Any]]:
-    with tempfile.TemporaryDirectory(prefix="jointctl-run-") as tmp, not_drawn():
+    scenario, plant, wrap = task_hooks(task)
+    # The defaults reach the sessions an analysis builds to run its scenario again (another mode, other gains).
+    with tempfile.TemporaryDirectory(prefix="jointctl-run-") as tmp, not_drawn(), session_defaults(plant, wrap):
         out = Path(tmp)
-        with build_session(task, out) as session:
+        with Session(scenario, out_dir=out, package_path=task.package_path) as session:
             analysis = check_analysis(session)
             session.run()
         session.manager.raise_failures()
