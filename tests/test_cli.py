@@ -130,12 +130,15 @@ def test_demo_runs_every_experiment_with_a_video_and_reports_each(tmp_path, monk
         return {"scenario": scenario.name, "a_metric": 1.5, "expected": {"a_metric": 1.5}}
 
     monkeypatch.setattr(run_module, "run_scenario", run_scenario)
+    # The report's sweep, stubbed too (run for real by tests/sweep/test_demo.py): it is the report's last section.
+    monkeypatch.setattr("jointctl.sweep.demo.demo_section", lambda out: "## Sweep: stubbed\n")
     assert main(["demo", "--out", str(tmp_path / "demo")]) == 0
     assert sorted(name for name, _ in ran) == sorted(EXPERIMENTS)
     assert all(video is run_module.DEMO_VIDEO for _, video in ran)  # a video of each experiment
     report = (tmp_path / "demo" / "report.md").read_text()
     assert all(f"## {name}\n" in report for name in EXPERIMENTS)
     assert "## arm7dof_streamer" not in report and report.count("| a_metric | 1.5 | 1.5 |") == len(EXPERIMENTS)
+    assert report.endswith("## Sweep: stubbed\n")
 
 
 def test_demo_report_of_two_experiments_links_their_figures_and_videos(tmp_path):
