@@ -53,6 +53,14 @@ def evaluate_on_worker(task: RunTask) -> Row:
     return row
 
 
+def cores() -> int:
+    """The cores this process may run on (its CPU affinity, else the machine's count)."""
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
 class Engine:
     """Runs tasks on a local Dask cluster (default: ``workers`` processes, one per core), on the cluster at
     ``scheduler``, or, with ``in_process``, here. Use it in a ``with`` block; one engine may run several
@@ -108,7 +116,7 @@ class Engine:
             return self
         from distributed import LocalCluster
 
-        count = self.workers or os.cpu_count() or 1
+        count = self.workers or cores()
         with _sigint_ignored_by_children():
             # No dashboard; the scheduler's small HTTP server (health, metrics) on a port the system picks, not
             # Dask's 8787, which another cluster on the machine may hold.
