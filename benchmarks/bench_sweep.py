@@ -19,9 +19,15 @@ The efficiency is bounded by the machine: on 2 cores the scheduler and this clie
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 from benchmarks.common import Result
+
+SRC = Path(__file__).resolve().parents[1] / "src"
 
 TARGET = "one_dof_step"
 RUNS = 200
@@ -42,8 +48,31 @@ def _sweep(vary, engine):
     return result
 
 
+#: The machine's own parallel efficiency: the same runs in plain processes, no Dask (each prints its wall time).
+PLAIN = """
+import sys, time
+from jointctl.sweep.runner import RunTask, evaluate
+evaluate(RunTask(0, "one_dof_step", {}))
+start = time.perf_counter()
+for k in range(RUNS):
+    assert evaluate(RunTask(k, "one_dof_step", {"payload_kg": 5.0 * k / RUNS})).error is None
+print(time.perf_counter() - start)
+"""
+
+
+def plain_processes(count: int, runs: int) -> float:
+    """Wall time [s] of ``count`` plain processes each running ``runs`` runs at once (the slowest's)."""
+    code = PLAIN.replace("RUNS", str(runs))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(SRC), os.environ.get("PYTHONPATH")]))}
+    processes = [subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=env)
+                 for _ in range(count)]
+    return max(float(p.communicate()[0].strip().splitlines()[-1]) for p in processes)
+
+
 def run() -> list[Result]:
     from jointctl.sweep import Engine
+
+    machine = plain_processes(1, RUNS // 2) / plain_processes(2, RUNS // 2)  # two do twice the work
 
     with Engine(in_process=True) as here:
         baseline = _sweep(VARY_200, here)
@@ -78,6 +107,7 @@ def run() -> list[Result]:
                overhead / own <= 0.05),
         Result("sweep", f"parallel efficiency, {RUNS} runs, 2 workers against 1", efficiency, "",
                ">= 0.85", efficiency >= 0.85),
+        Result("sweep", "the machine's: 2 plain processes against 1, no Dask (the ceiling)", machine, ""),
         Result("sweep", "1000 runs on 2 workers, wall time (incl. the check of the target)", wall_1000, "s"),
         Result("sweep", "1000 runs on 2 workers: wall time per run x workers / run's own time",
                wall_1000 * 2 / len(thousand.rows) / per_run_1000, "x"),
