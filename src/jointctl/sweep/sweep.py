@@ -34,7 +34,7 @@ def run_sweep(target: str, variations: Iterable[str | Variation], *, samples: in
               spec: str | Spec | None = None, scheduler: str | None = None, workers: int | None = None,
               in_process: bool = False, engine: Engine | None = None, out_dir: str | Path | None = None,
               controllers: str | None = None, overrides: Iterable[str] = (), package_path: Iterable[str] = (),
-              nominal: bool = True, figures: bool = True,
+              nominal: bool = True, check: bool = True, figures: bool = True,
               progress: bool | Callable[[Row], None] = False) -> SweepResult:
     """Run ``target`` (a scenario or robot, as ``jointctl run`` takes it) once per combination of
     ``variations`` (``"FIELD=VALUES"`` items or :class:`Variation`; see :mod:`jointctl.sweep.variations`), with
@@ -44,7 +44,8 @@ def run_sweep(target: str, variations: Iterable[str | Variation], *, samples: in
     ``engine`` when given (left open), else to one made for the call: the cluster at ``scheduler``, a local
     cluster of ``workers`` processes (default one per core), or this process (``in_process``). ``spec``
     (``"overshoot_pct<=10,settling_time_s<=0.3"``) judges each row. ``nominal=False`` skips the nominal run
-    (and with it the check of the spec's metric names). With ``out_dir``: ``results.csv``, ``summary.json``,
+    (and with it the check of the spec's metric names); ``check=False`` the check of the variations' values against
+    the target (for a caller that sweeps the same variations again and again, e.g. a design loop). With ``out_dir``: ``results.csv``, ``summary.json``,
     ``traces.npz`` and (``figures``) the PNGs. ``progress``: True for a progress line on stderr
     (:class:`~jointctl.sweep.engine.ProgressLine`), or a function called with each row as it arrives.
     """
@@ -55,7 +56,8 @@ def run_sweep(target: str, variations: Iterable[str | Variation], *, samples: in
     own = engine is None
     if own:
         engine = Engine(scheduler=scheduler, workers=workers, in_process=in_process)  # its arguments checked here
-    check_variations(base, found)
+    if check:
+        check_variations(base, found)
     nominal_row = None
     if nominal:
         nominal_row = evaluate(base)
