@@ -42,10 +42,11 @@ def env() -> dict:
 
 
 def stop(processes) -> None:
+    """Each process told to stop and awaited in turn, the last started first: the workers before their scheduler
+    (a worker closing because its scheduler went away while a SIGTERM arrives can hang in its close)."""
     for process in reversed(processes):
         if process.poll() is None:
             process.terminate()
-    for process in reversed(processes):
         try:
             process.wait(15)
         except subprocess.TimeoutExpired:
