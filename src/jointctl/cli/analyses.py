@@ -82,6 +82,15 @@ def add_parsers(sub) -> None:
     tune_gains.add_argument("--step", type=float, default=0.1,
                             help="the largest step [m, rad, or per s] that must not saturate the effort (default 0.1)")
     tune_gains.add_argument("--plant", type=Path, help="an identification's metrics.json (default: the robot model)")
+    tune_gains.add_argument("--robust", action="append", default=[], metavar="FIELD=LOW:HIGH",
+                            help="design against a family of plants: payload_kg or model.<link|joint>.<field> "
+                                 "between LOW and HIGH (repeatable); the gains meet the spec on every corner, the "
+                                 "centre and --robust-samples draws, checked by a sweep on the simulated robot")
+    tune_gains.add_argument("--robust-samples", type=int, default=8, help="uniform draws inside the ranges (default 8)")
+    tune_gains.add_argument("--seed", type=int, default=0, help="the draws' seed (default 0)")
+    tune_gains.add_argument("--scheduler", help="with --robust: the Dask scheduler running the check's sweep "
+                                                "(default: in this process)")
+    tune_gains.add_argument("--workers", type=int, help="with --robust: a local cluster of this many workers")
     safety_arguments(tune_gains)
     tune_gains.add_argument("--out", type=Path, default=Path("out/autotune"), help="output folder")
     identify.set_defaults(handler=_identify)
@@ -365,6 +374,8 @@ def _autotune(args: argparse.Namespace) -> int:
                             "cannot read or set: there is nothing of jointctl's to tune", field="--hardware",
                             value="industrial")
     zeta, bandwidth_hz, settling_s = _autotune_spec(args)
+    if args.robust:
+        return _robust_autotune(args, zeta, bandwidth_hz, settling_s)
     plant = _plant_file(args.plant)
     safety = safety_from_args(args)
     if args.dry_run:
@@ -384,6 +395,32 @@ def _autotune(args: argparse.Namespace) -> int:
                           settling_s=settling_s, safety=safety)
     print(metrics_json(result))
     say_warnings(result)
+    print(f"wrote {result['yaml']}", file=sys.stderr)
+    return 0
+
+
+def _robust_autotune(args: argparse.Namespace, zeta: float, bandwidth_hz: float, settling_s: float | None) -> int:
+    """``autotune --robust``: gains for the spec on every plant of the family (see
+    :mod:`jointctl.sweep.robust_design`), on the simulated robot's model, checked by a sweep."""
+    from jointctl.identification.autotune import overshoot_of
+    from jointctl.sweep.robust_design import parse_range, robust_autotune, write_robust
+
+    for flag, unsupported in (("--hardware", args.hardware != "sim"), ("--plant", args.plant is not None),
+                              ("--dry-run", getattr(args, "dry_run", False))):
+        if unsupported:
+            raise JointCtlError("a robust design runs on the simulated robot's model family; drop it or --robust",
+                                field=flag, value=getattr(args, flag[2:].replace("-", "_")))
+    ranges = [parse_range(item) for item in args.robust]  # checked before anything runs
+    result = robust_autotune(lambda overrides: _loop_scenario(args, overrides), args.controller, ranges,
+                             overshoot_pct=100 * overshoot_of(zeta), settling_s=settling_s, zeta=zeta,
+                             bandwidth_hz=bandwidth_hz, step=args.step, target=args.target,
+                             controllers=args.controllers, overrides=args.overrides, samples=args.robust_samples,
+                             seed=args.seed, scheduler=args.scheduler, workers=args.workers)
+    write_robust(args.out, _loop_scenario(args), args.controller, result)
+    print(metrics_json(result))
+    if not result["meets_spec_on_model"]:
+        print("jointctl: warning: no PD gains found that meet the spec on every plant of the family; the report "
+              "gives the best found and its worst case", file=sys.stderr)
     print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0
 

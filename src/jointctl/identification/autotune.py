@@ -146,17 +146,8 @@ SETTLING_BAND = 0.02
 
 
 def _model_step(model: LoopModel, seconds: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
-    """(t, y): the sampled closed loop's response to a unit step at t = 0 (y[0] = 0: no feed-through),
-    run as its difference equation (the loop's transfer function, a few states: exact and far faster
-    than stepping the state space)."""
-    from scipy.signal import lfilter, ss2tf
-
-    t = np.arange(int(round(seconds / model.period_s))) * model.period_s
-    closed = model.closed_loop()
-    if not np.all(np.isfinite(closed.A)):  # a solver's trial gains beyond numbers
-        return t, np.full_like(t, math.nan)
-    num, den = ss2tf(np.asarray(closed.A), np.asarray(closed.B), np.asarray(closed.C), np.asarray(closed.D))
-    return t, lfilter(num[0], den, np.ones_like(t))
+    """(t, y): the loop model's unit step response (:meth:`LoopModel.step`)."""
+    return model.step(seconds)
 
 
 def _model_overshoot(model: LoopModel) -> float:

@@ -130,6 +130,19 @@ class LoopModel:
         *_, a_cl, b_cl, c_cl = self._matrices()
         return control.ss(a_cl, b_cl, c_cl, [[0.0]], self.period_s)
 
+    def step(self, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+        """(t [s], y): the sampled closed loop's response to a unit reference step at t = 0 (y[0] = 0: no
+        feed-through), run as its difference equation (the loop's transfer function, a few states: exact,
+        and far faster than stepping the state space); y NaN for gains beyond numbers."""
+        from scipy.signal import lfilter, ss2tf
+
+        t = np.arange(int(round(seconds / self.period_s))) * self.period_s
+        *_, a_cl, b_cl, c_cl = self._matrices()
+        if not np.all(np.isfinite(a_cl)):
+            return t, np.full_like(t, math.nan)
+        num, den = ss2tf(a_cl, b_cl, c_cl, np.zeros((1, 1)))
+        return t, lfilter(num[0], den, np.ones_like(t))
+
     def response(self, frequencies_hz) -> tuple[np.ndarray, np.ndarray]:
         """Closed-loop gain [dB] and phase [deg] at ``frequencies_hz``."""
         *_, a_cl, b_cl, c_cl = self._matrices()
