@@ -64,6 +64,8 @@ def test_the_nominal_design_rings_with_a_payload_and_the_robust_one_meets_the_sp
     assert worst["runs"] == 3 and worst["passed"] == 3 and not worst["errors"]
     assert worst["overshoot_pct"] <= 10 and worst["settling_time_s"] <= 0.3
     assert robust["effort_at_step"] <= robust["effort_limit"]
+    # Phase margins on the sampled loops: the robust loop is the better damped one at the heaviest plant.
+    assert robust["model_worst"]["phase_margin_deg"] > nominal["model_worst"]["phase_margin_deg"]
     # ... as the theory says of the two ends: ζ at the heaviest plant high enough for 10 %.
     assert continuous_overshoot_pct(robust["gains"]["p"], robust["gains"]["d"], MASS_KG + 5.0) <= 10
 

@@ -139,7 +139,7 @@ def family(scenario: Scenario, joint: str, ranges: Sequence[Range], *, samples: 
 def plant_figures(plant: Plant, gains: dict, period_s: float, derivative: str, *, bandwidth: bool = False,
                   seconds: float = STEP_SECONDS) -> dict:
     """The model step's overshoot [%] and settling time [s] (NaN when it does not settle within ``seconds``) of
-    ``plant`` under ``gains`` (and its -3 dB bandwidth [Hz] with ``bandwidth``)."""
+    ``plant`` under ``gains`` (and its -3 dB bandwidth [Hz] and phase margin [deg] with ``bandwidth``)."""
     model = LoopModel(plant.inertia, plant.damping, gains["p"], 0.0, gains["d"], period_s, "position", derivative)
     t, y = model.step(seconds)
     final = float(y[-1])
@@ -148,16 +148,18 @@ def plant_figures(plant: Plant, gains: dict, period_s: float, derivative: str, *
            "final_error": abs(1.0 - final) if math.isfinite(final) else math.inf}
     if bandwidth:
         out["bandwidth_hz"] = _model_bandwidth(model, max(math.sqrt(gains["p"] / plant.inertia) / (2 * math.pi), 0.1))
+        out["phase_margin_deg"] = model.margins()["phase_margin_deg"]
     return out
 
 
 def worst_case(plants: Sequence[Plant], gains: dict, period_s: float, derivative: str, *,
                bandwidth: bool = False, seconds: float = 3.0) -> dict:
-    """Over the family: the largest overshoot and settling time, the smallest bandwidth, and which plant."""
+    """Over the family: the largest overshoot, settling time and final error, the smallest bandwidth and phase
+    margin (python-control's, on the sampled loop), and which plant."""
     rows = [plant_figures(p, gains, period_s, derivative, bandwidth=bandwidth, seconds=seconds) for p in plants]
     out = {}
     for key, worse in (("overshoot_pct", max), ("settling_time_s", max), ("final_error", max),
-                       ("bandwidth_hz", min)):
+                       ("bandwidth_hz", min), ("phase_margin_deg", min)):
         if key not in rows[0]:
             continue
         values = [math.inf if not math.isfinite(r[key]) and worse is max else r[key] for r in rows]
