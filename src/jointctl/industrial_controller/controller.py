@@ -97,6 +97,7 @@ class SimulatedController:
         self.moving_threshold = moving_threshold
         self._latest = (tuple(start), False)  # (measured positions, any joint moving), swapped whole
         self._closing = threading.Event()
+        self._stop_asked = threading.Event()  # set by stop(), kept: run() honours a stop asked before it began
         self._threads: list[threading.Thread] = []
         #: State reports sent and motion connections accepted so far.
         self.reports_sent = 0
@@ -146,9 +147,18 @@ class SimulatedController:
         self.start()
         previous = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
+        loop = self.session.loop
+
+        def honour_stop(_time_s: float) -> None:  # a stop asked before the loop began (a SIGTERM at start-up)
+            if self._stop_asked.is_set():
+                loop.request_stop()
+
+        loop.add_observer(honour_stop)
         try:
-            self.session.loop.run(duration_s)
+            if not self._stop_asked.is_set():
+                loop.run(duration_s)
         finally:
+            loop.remove_observer(honour_stop)
             sys.setswitchinterval(previous)
 
     def start(self) -> None:
@@ -161,7 +171,8 @@ class SimulatedController:
             self._threads.append(thread)
 
     def stop(self) -> None:
-        """Ask :meth:`run` to return after the current cycle (thread-safe)."""
+        """Ask :meth:`run` to return after the current cycle (thread-safe; also when asked before it began)."""
+        self._stop_asked.set()
         self.session.loop.request_stop()
 
     def close(self) -> None:
