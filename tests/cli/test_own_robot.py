@@ -4,9 +4,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import json
 import math
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,16 +22,32 @@ from jointctl.model.loader import load_robot_model
 from tests import planar_arm
 
 
+@pytest.fixture(scope="module")
+def written(tmp_path_factory) -> Path:
+    """A folder holding planar_arm.urdf and the ``arm`` folder ``jointctl init planar_arm.urdf --out arm``
+    writes (once for the module: the gains' design is the slow part), and what init printed."""
+    root = tmp_path_factory.mktemp("own_robot")
+    planar_arm.write_urdf(root)
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.chdir(root), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        assert main(["init", "planar_arm.urdf", "--out", "arm"]) == 0
+    (root / "init.out").write_text(out.getvalue())
+    (root / "init.err").write_text(err.getvalue())
+    return root
+
+
 @pytest.fixture
-def folder(tmp_path, monkeypatch, capsys):
-    """The folder ``jointctl init planar_arm.urdf --out arm`` writes (cwd: tmp_path)."""
+def folder(written, tmp_path, monkeypatch):
+    """A copy of that folder (cwd: tmp_path), for a test to write into."""
+    shutil.copytree(written, tmp_path, dirs_exist_ok=True)
     monkeypatch.chdir(tmp_path)
-    planar_arm.write_urdf(tmp_path)
-    assert main(["init", "planar_arm.urdf", "--out", "arm"]) == 0
-    out, err = capsys.readouterr()
+    return tmp_path / "arm"
+
+
+def test_init_says_what_it_designed_and_what_it_wrote(folder) -> None:
+    out, err = (folder.parent / "init.out").read_text(), (folder.parent / "init.err").read_text()
     assert out.splitlines()[0].split() == ["joint", "home", "inertia", "gravity", "limit", "p", "d", "Hz"]
     assert "wrote arm/robot.yaml" in err and "next: jointctl run arm/scenarios/step_shoulder.yaml" in err
-    return tmp_path / "arm"
 
 
 def run_json(capsys, *argv) -> tuple[dict, str]:

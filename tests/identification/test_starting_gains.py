@@ -15,13 +15,19 @@ from jointctl.model.loader import load_robot_model
 from tests import planar_arm
 
 
-@pytest.fixture
-def arm(tmp_path):
-    return load_robot_model(planar_arm.write_urdf(tmp_path))
+@pytest.fixture(scope="module")
+def arm(tmp_path_factory):
+    return load_robot_model(planar_arm.write_urdf(tmp_path_factory.mktemp("arm")))
 
 
-def test_the_plant_at_home_is_the_planar_arms_closed_form(arm) -> None:
-    loops = {loop.joint: loop for loop in starting_gains(arm)}
+@pytest.fixture(scope="module")
+def default_loops(arm):
+    """The starting loops at the default spec (2 Hz, ζ 0.7): designed once for the module."""
+    return starting_gains(arm)
+
+
+def test_the_plant_at_home_is_the_planar_arms_closed_form(arm, default_loops) -> None:
+    loops = {loop.joint: loop for loop in default_loops}
     assert list(loops) == ["shoulder", "elbow"] and home_pose(arm) == {"shoulder": 0.0, "elbow": 0.0}
     assert loops["shoulder"].inertia == pytest.approx(planar_arm.shoulder_inertia_kg_m2(0.0), rel=1e-3)
     assert loops["elbow"].inertia == pytest.approx(planar_arm.elbow_inertia_kg_m2(), rel=1e-3)
@@ -31,8 +37,8 @@ def test_the_plant_at_home_is_the_planar_arms_closed_form(arm) -> None:
         assert loops[name].effort_limit == planar_arm.EFFORT[name]
 
 
-def test_every_loop_holds_its_load_and_its_step_fits_the_effort_limit(arm) -> None:
-    for loop in starting_gains(arm, bandwidth_hz=2.0):
+def test_every_loop_holds_its_load_and_its_step_fits_the_effort_limit(default_loops) -> None:
+    for loop in default_loops:
         p, d = loop.gains["p"], loop.gains["d"]
         assert loop.gravity_load / p <= SAG_FRACTION * loop.step * (1 + 1e-6)  # the sag
         assert p * loop.step + loop.gravity_load <= EFFORT_FRACTION * loop.effort_limit * (1 + 1e-6)
