@@ -10,12 +10,10 @@ from __future__ import annotations
 import csv
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
 import time
-import uuid
 from pathlib import Path
 
 import psutil
@@ -24,6 +22,7 @@ import pytest
 from jointctl.cli import main
 from jointctl.sweep import Engine, run_sweep
 from jointctl.sweep import engine as engine_module
+from tests.netns import two_hosts
 
 pytestmark = pytest.mark.wall_clock
 
@@ -151,50 +150,11 @@ ADDR_A, ADDR_B = "10.201.0.1", "10.201.0.2"
 PORT = 8786
 
 
-def _can_make_namespaces() -> str | None:
-    if os.geteuid() != 0:
-        return "needs root for network namespaces"
-    if shutil.which("ip") is None:
-        return "needs iproute2's ip"
-    return None
-
-
-def _ip(*args: str, check: bool = True) -> subprocess.CompletedProcess:
-    return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=10, check=check)
-
-
 @pytest.fixture
 def hosts():
-    """Two namespaces (A, B) joined by a veth pair; deleted afterwards, whatever happened."""
-    reason = _can_make_namespaces()
-    if reason:
-        if os.environ.get("JOINTCTL_REQUIRE_ROS"):
-            pytest.fail(f"JOINTCTL_REQUIRE_ROS is set but {reason}")
-        pytest.skip(reason)
-    tag = uuid.uuid4().hex[:6]
-    ns_a, ns_b = f"js_a_{tag}", f"js_b_{tag}"
-    veth_a, veth_b = f"jsva{tag}", f"jsvb{tag}"  # at most 15 characters
-    try:
-        _ip("netns", "add", ns_a)
-        _ip("netns", "add", ns_b)
-        _ip("link", "add", veth_a, "type", "veth", "peer", "name", veth_b)
-        _ip("link", "set", veth_a, "netns", ns_a)
-        _ip("link", "set", veth_b, "netns", ns_b)
-        for ns, dev, addr in ((ns_a, veth_a, ADDR_A), (ns_b, veth_b, ADDR_B)):
-            _ip("-n", ns, "addr", "add", f"{addr}/30", "dev", dev)
-            _ip("-n", ns, "link", "set", dev, "up")
-            _ip("-n", ns, "link", "set", "lo", "up")
-    except subprocess.CalledProcessError as exc:
-        for ns in (ns_a, ns_b):
-            _ip("netns", "del", ns, check=False)
-        if os.environ.get("JOINTCTL_REQUIRE_ROS"):
-            raise
-        pytest.skip(f"network namespaces unavailable here: {exc.stderr.strip()}")
-    try:
-        yield ns_a, ns_b
-    finally:
-        for ns in (ns_a, ns_b):
-            _ip("netns", "del", ns, check=False)
+    """Two namespaces (A, B) joined by a veth pair (:func:`tests.netns.two_hosts`)."""
+    with two_hosts("js", ADDR_A, ADDR_B) as namespaces:
+        yield namespaces
 
 
 def _in(ns: str, *cmd: str) -> list[str]:
