@@ -34,8 +34,10 @@ def jointctl(env, *args, check=True):
 
 def test_identify_reads_the_served_model_and_finds_the_namespace(served, tmp_path) -> None:
     env, _ = served
+    # A small chirp (0.04 rad, at most 0.75 rad/s against the 3 rad/s limit): states that arrive late on a busy
+    # machine must not read as speeds at the limit, which the saturation guard would refuse.
     result = jointctl(env, "identify", "--hardware", "ros", "--joint", "elbow", "--duration-s", "4",
-                      "--out", tmp_path)
+                      "--amplitude", "0.04", "--out", tmp_path)
     assert "took the model on /robot_description; its loops on /planar_arm" in result.stderr
     metrics = json.loads(result.stdout)
     # The elbow's inertia about its axis (+ dt·b) and its damping, the shoulder's motion under the
@@ -49,7 +51,7 @@ def test_identify_reads_the_served_model_and_finds_the_namespace(served, tmp_pat
 def test_bode_takes_the_folder_and_a_missing_namespace_is_named(served, tmp_path) -> None:
     env, folder = served
     result = jointctl(env, "bode", folder, "--hardware", "ros", "--controller", "elbow_position_controller",
-                      "--points", "2", "--f-min-hz", "0.5", "--f-max-hz", "1", "--amplitude", "0.05",
+                      "--points", "2", "--f-min-hz", "1", "--f-max-hz", "2", "--amplitude", "0.05",
                       "--out", tmp_path / "bode")
     assert f"took {folder} as a robot folder" in result.stderr
     full = json.loads((tmp_path / "bode" / "metrics.json").read_text())
