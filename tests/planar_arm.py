@@ -20,10 +20,12 @@ LIMIT_RAD = 2.5
 
 def _link(name: str, mass: float, length: float) -> str:
     i = mass * length**2 / 12
+    rod = (f'<origin xyz="{length / 2} 0 0" rpy="0 1.5708 0"/>'
+           f'<geometry><cylinder length="{length}" radius="0.03"/></geometry>')
     return f"""
   <link name="{name}">
-    <visual><origin xyz="{length / 2} 0 0" rpy="0 1.5708 0"/><geometry><cylinder length="{length}" radius="0.03"/></geometry></visual>
-    <collision><origin xyz="{length / 2} 0 0" rpy="0 1.5708 0"/><geometry><cylinder length="{length}" radius="0.03"/></geometry></collision>
+    <visual>{rod}</visual>
+    <collision>{rod}</collision>
     <inertial><origin xyz="{length / 2} 0 0"/><mass value="{mass}"/>
       <inertia ixx="1e-4" ixy="0" ixz="0" iyy="{i}" iyz="0" izz="{i}"/></inertial>
   </link>"""
@@ -52,7 +54,8 @@ def urdf_text() -> str:
   <joint name="base_to_world" type="fixed"><parent link="world"/><child link="base"/></joint>
   <link name="base">
     <visual><origin xyz="0 0 0.6"/><geometry><box size="0.1 0.1 1.2"/></geometry></visual>
-    <inertial><origin xyz="0 0 0.6"/><mass value="5"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
+    <inertial><origin xyz="0 0 0.6"/><mass value="5"/>
+      <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
   </link>
 {_link("upper_arm", *UPPER)}
 {_link("forearm", *FORE)}

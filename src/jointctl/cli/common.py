@@ -72,10 +72,12 @@ def safety_from_args(args: argparse.Namespace):
 
 def industrial_arguments(parser: argparse.ArgumentParser) -> None:
     """How to reach an industrial controller (serve and bode with --hardware industrial)."""
-    parser.add_argument("--robot-ip", help="with --hardware industrial: the robot controller's host name or IPv4 address")
+    parser.add_argument("--robot-ip",
+                        help="with --hardware industrial: the robot controller's host name or IPv4 address")
     parser.add_argument("--motion-port", type=int, default=11000, help="the controller's motion port (default 11000)")
     parser.add_argument("--state-port", type=int, default=11002, help="the controller's state port (default 11002)")
-    parser.add_argument("--big-endian", action="store_true", help="the controller speaks big-endian (the _bswap drivers)")
+    parser.add_argument("--big-endian", action="store_true",
+                        help="the controller speaks big-endian (the _bswap drivers)")
     parser.add_argument("--stream-rate-hz", type=float, default=50.0,
                         help="with --points resampled, and outside goals: points streamed to the controller per "
                              "second (default 50)")

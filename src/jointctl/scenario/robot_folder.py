@@ -81,7 +81,8 @@ def _controllers(robot_name: str, source: str, loops, bandwidth_hz: float, zeta:
         effort = "N" if loop.joint_type == "prismatic" else "N·m"
         lines += ["",
                   f"  # {loop.joint}: inertia {_number(loop.inertia)} {unit}, damping {_number(loop.damping)}, gravity "
-                  f"load {_number(loop.gravity_load)} {effort} at home, effort limit {_number(loop.effort_limit)} {effort}"]
+                  f"load {_number(loop.gravity_load)} {effort} at home, effort limit "
+                  f"{_number(loop.effort_limit)} {effort}"]
         if loop.note:
             lines.append(f"  # {loop.note}")
         gains = loop.gains
@@ -99,7 +100,8 @@ def _step_scenario(robot_name: str, loops, gravity_z_m_s2: float, timestep_s: fl
     started = ", ".join(["joint_state_controller", *(loop.controller for loop in loops)])
     return (f"name: {robot_name}_step_{first.joint}\n"
             "description: >\n"
-            f"  {first.joint} steps by {_number(first.step)} from the home pose, the other joints held by their loops.\n"
+            f"  {first.joint} steps by {_number(first.step)} from the home pose, the other joints held by their "
+            "loops.\n"
             "robot: ..\n"
             "controller_file: position\n"
             f"start_controllers: [{started}]\n"

@@ -78,7 +78,8 @@ def robot_files(ref: str) -> tuple[RobotFiles, str] | None:
         raise ConfigError("no such robot description file", field="target", value=ref)
     if path.is_file() and path.suffix in DESCRIPTION_SUFFIXES:
         resolved = path.resolve()
-        return RobotFiles(resolved.stem, resolved, {}, resolved.parent), f"a robot description ({path.suffix[1:].upper()})"
+        taken = f"a robot description ({path.suffix[1:].upper()})"
+        return RobotFiles(resolved.stem, resolved, {}, resolved.parent), taken
     if path.is_file() and path.suffix in (".yaml", ".yml") and _yaml_kind(path) == "manifest":
         return read_robot_manifest(path), "a robot manifest"
     return None

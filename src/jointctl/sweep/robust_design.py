@@ -120,7 +120,8 @@ def family(scenario: Scenario, joint: str, ranges: Sequence[Range], *, samples: 
     lows, highs = np.array([r.low for r in ranges]), np.array([r.high for r in ranges])
     corners = [np.where(np.array(bits), highs, lows) for bits in np.ndindex(*(2,) * len(ranges))]
     rng = np.random.default_rng(seed)
-    points = [*corners, 0.5 * (lows + highs), *(lows + (highs - lows) * rng.random(len(ranges)) for _ in range(samples))]
+    draws = [lows + (highs - lows) * rng.random(len(ranges)) for _ in range(samples)]
+    points = [*corners, 0.5 * (lows + highs), *draws]
     names = [j.name for j in robot.movable_joints]
     pose = [float(scenario.initial_positions.get(n, 0.0)) for n in names]
     plants = []
