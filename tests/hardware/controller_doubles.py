@@ -52,9 +52,12 @@ class ControllerDouble:
     starting at ``positions``."""
 
     def __init__(self, kind: str, positions, max_velocities, *, capacity: int = 8,
-                 period_s: float = 0.01) -> None:
+                 period_s: float = 0.01, failure_reply_delay_s: float = 0.0) -> None:
         assert kind in KINDS
         self.kind, self.capacity, self.period_s = kind, capacity, period_s
+        #: How long a FAILURE reply waits after its STATUS error is reported [s] (a controller that says
+        #: the error on the state port before it answers the request).
+        self.failure_reply_delay_s = failure_reply_delay_s
         self.max_velocities = list(max_velocities)
         self.positions = list(map(float, positions))
         self.points: list[tuple[float, JointTrajPt | JointTrajPtFull]] = []
@@ -191,7 +194,10 @@ class ControllerDouble:
                         assert packet.comm_type == CommType.SERVICE_REQUEST
                         message = decode(packet)
                         self.points.append((time.monotonic(), message))
-                        conn.sendall(encode_reply(packet, self._on_point(message)))
+                        code = self._on_point(message)
+                        if code == ReplyCode.FAILURE and self.failure_reply_delay_s:
+                            self.closing.wait(self.failure_reply_delay_s)
+                        conn.sendall(encode_reply(packet, code))
             except OSError:
                 continue
             with self.lock:

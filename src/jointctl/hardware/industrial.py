@@ -180,6 +180,7 @@ class IndustrialHardware(HardwareInterface):
         self._done_at = -float("inf")  # time.monotonic() its last point was answered or sent
         self._rest_reports = 0  # STATUS reports since then saying the robot is not in motion
         self._refused_point: tuple[int, float] | None = None  # (sequence, time.monotonic()) of a FAILURE
+        self._awaiting_reply_since: float | None = None  # time.monotonic() a SERVICE_REQUEST was sent, unanswered
         self._trajectory_end: list[float] | None = None  # the last point of the trajectory in hand
         #: JOINT_POSITION reports received when ``position`` was last refreshed (by :meth:`read`).
         self.reports_read = 0
@@ -339,6 +340,14 @@ class IndustrialHardware(HardwareInterface):
         """Send one point as a SERVICE_REQUEST and wait for the reply (the flow control). A FAILURE
         reply to a trajectory's point abandons the rest of that trajectory and is reported as a fault."""
         sock = self._motion
+        self._awaiting_reply_since = time.monotonic()
+        try:
+            self._await_reply(sock, point, trajectory)
+        finally:
+            self._awaiting_reply_since = None
+
+    def _await_reply(self, sock: socket.socket, point: JointTrajPt | JointTrajPtFull, trajectory: int) -> None:
+        """Send ``point`` as a SERVICE_REQUEST on ``sock`` and handle its reply (see :meth:`_request`)."""
         sock.sendall(encode(point, CommType.SERVICE_REQUEST, big_endian=self.big_endian))
         reader = PacketReader(big_endian=self.big_endian)
         kind = MsgType.JOINT_TRAJ_PT_FULL if isinstance(point, JointTrajPtFull) else MsgType.JOINT_TRAJ_PT
@@ -361,6 +370,12 @@ class IndustrialHardware(HardwareInterface):
                 else:
                     self._point_done(trajectory)
                 return
+
+    def _reply_due(self) -> bool:
+        """A point awaits its reply, sent less than ``ERROR_CODE_WAIT_S`` ago: an error STATUS now is most
+        likely that point's refusal, and its FAILURE reply, which names the point, is on its way."""
+        since = self._awaiting_reply_since
+        return since is not None and time.monotonic() < since + ERROR_CODE_WAIT_S
 
     def _point_done(self, trajectory: int) -> None:
         """A point of trajectory number ``trajectory`` was answered (streaming) or sent (download):
@@ -439,7 +454,8 @@ class IndustrialHardware(HardwareInterface):
             self.fault = self._motion_lost
         elif self._stopping or came_to_rest:
             self.fault = STOPPING
-        elif refused and not self._refusal_reported:
+        elif refused and not self._refusal_reported and refused_point is None and not self._reply_due():
+            # (A refused point's own FAILURE reply, due or come, is reported above, naming the point.)
             # Reported for one read: the trajectory in progress is aborted; the next motion starts a
             # new trajectory (sequence 0), which clears the controller's error.
             self._refusal_reported = True
