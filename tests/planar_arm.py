@@ -39,10 +39,16 @@ def _joint(name: str, parent: str, child: str, x: float, z: float) -> str:
     <limit lower="-{LIMIT_RAD}" upper="{LIMIT_RAD}" effort="{EFFORT[name]}" velocity="{VELOCITY_RAD_S}"/>
     <dynamics damping="{DAMPING[name]}"/>
   </joint>
-  <transmission name="{name}_transmission">
+  {transmission(name)}"""
+
+
+def transmission(joint: str) -> str:
+    """A ros_control SimpleTransmission driving ``joint`` through an EffortJointInterface (what jointctl, as
+    ros_control, needs to drive a joint)."""
+    return f"""<transmission name="{joint}_transmission">
     <type>transmission_interface/SimpleTransmission</type>
-    <joint name="{name}"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>
-    <actuator name="{name}_motor"><mechanicalReduction>1</mechanicalReduction></actuator>
+    <joint name="{joint}"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>
+    <actuator name="{joint}_motor"><mechanicalReduction>1</mechanicalReduction></actuator>
   </transmission>"""
 
 

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import yaml
 
+from tests.planar_arm import transmission
+
 ELBOW_INERTIA = 0.080
 ELBOW_DAMPING = 0.5
 SHOULDER_DAMPING = 1.0
@@ -48,11 +50,6 @@ URDF = """<?xml version="1.0"?>
 </robot>
 """
 
-TRANSMISSION = """<transmission name="{joint}_transmission">
-    <type>transmission_interface/SimpleTransmission</type>
-    <joint name="{joint}"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>
-    <actuator name="{joint}_motor"><mechanicalReduction>1</mechanicalReduction></actuator>
-  </transmission>"""
 
 
 def write_planar_arm(folder: Path, *, shoulder_pid=(1000.0, 0.0, 40.0), elbow_pid=(60.0, 0.0, 2.0)) -> Path:
@@ -61,7 +58,7 @@ def write_planar_arm(folder: Path, *, shoulder_pid=(1000.0, 0.0, 40.0), elbow_pi
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "planar_arm.urdf").write_text(URDF.format(
         shoulder_damping=SHOULDER_DAMPING, elbow_damping=ELBOW_DAMPING,
-        transmissions="\n  ".join(TRANSMISSION.format(joint=j) for j in ("shoulder", "elbow"))))
+        transmissions="\n  ".join(transmission(j) for j in ("shoulder", "elbow"))))
     controllers = {"joint_state_controller": {"type": "joint_state_controller/JointStateController",
                                               "publish_rate": 50}}
     for joint, (p, i, d) in (("shoulder", shoulder_pid), ("elbow", elbow_pid)):

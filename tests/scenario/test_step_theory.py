@@ -32,6 +32,7 @@ from scipy.optimize import fsolve
 
 from jointctl.scenario.run import run_scenario
 from jointctl.scenario.spec import load_scenario
+from tests.planar_arm import transmission
 
 G = 9.81
 M1, C1, L1, I1 = 3.0, 0.3, 0.6, 0.09
@@ -69,24 +70,9 @@ URDF = """<?xml version="1.0"?>
     <inertial><origin xyz="0.25 0 0"/><mass value="1.5"/>
       <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.03"/></inertial>
   </link>
-  <transmission name="shoulder_transmission">
-    <type>transmission_interface/SimpleTransmission</type>
-    <joint name="shoulder"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>
-    <actuator name="shoulder_motor">
-      <hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface>
-      <mechanicalReduction>1</mechanicalReduction>
-    </actuator>
-  </transmission>
-  <transmission name="elbow_transmission">
-    <type>transmission_interface/SimpleTransmission</type>
-    <joint name="elbow"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>
-    <actuator name="elbow_motor">
-      <hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface>
-      <mechanicalReduction>1</mechanicalReduction>
-    </actuator>
-  </transmission>
+  {transmissions}
 </robot>
-"""
+""".replace("{transmissions}", "\n  ".join(transmission(j) for j in ("shoulder", "elbow")))
 
 CONTROLLERS = """planar_arm:
   joint_state_controller:
