@@ -286,7 +286,7 @@ def test_autotune_refuses_bad_input_in_one_line(args, fragments, tmp_path):
 
 def test_run_video_writes_the_videos_next_to_the_trace(tmp_path):
     result = jointctl("run", "one_dof_step", "--set", "duration_s=1.0", "--video", "--video-fps", "10",
-                      "--video-size", "320x240", "--out", tmp_path)
+                      "--video-size", "320x240", "--video-camera", "120,-20", "--out", tmp_path)
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "video.mp4").is_file() and (tmp_path / "video.gif").is_file()
     assert json.loads((tmp_path / "metrics.json").read_text())["video"]["frames"] == 10
@@ -296,7 +296,8 @@ def test_run_video_writes_the_videos_next_to_the_trace(tmp_path):
     (["--video-size", "640"], ["--video-size", "WIDTHxHEIGHT", "640"]),
     (["--video-size", "641x480"], ["--video-size", "even", "641x480"]),
     (["--video-fps", "0"], ["--video-fps", "0"]),
-    (["--video-camera", "0,0,1"], ["--video-camera", "six numbers"]),
+    (["--video-camera", "0,0,1"], ["--video-camera", "AZIMUTH,ELEVATION"]),
+    (["--video-camera", "90,95"], ["--video-camera.elevation_deg", "95"]),
     (["--video-camera", "0,0,1,-2,90,0"], ["--video-camera.distance_m", "-2"]),
 ])
 def test_run_video_refuses_bad_options_before_anything_runs(args, fragments, tmp_path):

@@ -408,10 +408,27 @@ def test_a_colour_out_of_range_is_refused_naming_it() -> None:
 
 
 def test_the_colours_reach_the_simulated_world() -> None:
-    from jointctl.model.mjcf import compile_robot
+    from jointctl.model.mjcf import ROOT_LINK_COLOUR, compile_robot
 
     model = compile_robot(parse_urdf(COLOURED, source=SOURCE))
     visible = [tuple(round(float(c), 3) for c in model.geom_rgba[g]) for g in range(model.ngeom)
                if model.geom_rgba[g][3] > 0]
     assert (0.0, 0.0, 0.8, 1.0) in visible and (1.0, 0.0, 0.0, 0.5) in visible
-    assert (0.5, 0.5, 0.5, 1.0) in visible  # MuJoCo's grey where the URDF names no colour
+    assert ROOT_LINK_COLOUR in visible  # the root link's default where the URDF names no colour
+
+
+def test_links_without_colours_get_one_each_so_a_plain_urdf_is_not_a_grey_robot() -> None:
+    import mujoco
+
+    from jointctl.model.mjcf import LINK_COLOURS, ROOT_LINK_COLOUR, compile_robot
+    from tests.planar_arm import urdf_text  # world -> base post -> upper_arm -> forearm, no materials
+
+    model = compile_robot(parse_urdf(urdf_text(), source=SOURCE))
+    colours = {}
+    for g in range(model.ngeom):
+        if model.geom_rgba[g][3] > 0:
+            body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.geom_bodyid[g]))
+            colours[body] = tuple(round(float(c), 3) for c in model.geom_rgba[g])
+    # The base post is fixed to the "world" link: the base's grey; the moving links the palette in turn.
+    assert colours == {"base": ROOT_LINK_COLOUR, "upper_arm": LINK_COLOURS[0], "forearm": LINK_COLOURS[1]}
+    assert len(set(colours.values())) == 3

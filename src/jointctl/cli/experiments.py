@@ -40,8 +40,9 @@ def add_parsers(sub) -> None:
                      help="draw the run offscreen after it: video.mp4 and a small video.gif in the output folder")
     run.add_argument("--video-fps", type=float, default=25.0, help="frames per second of loop time (default 25)")
     run.add_argument("--video-size", default="640x480", help="WIDTHxHEIGHT in pixels, even (default 640x480)")
-    run.add_argument("--video-camera", metavar="X,Y,Z,DISTANCE,AZIMUTH,ELEVATION",
-                     help="the camera: the point looked at [m], distance [m], azimuth and elevation [deg] "
+    run.add_argument("--video-camera", metavar="[X,Y,Z,DISTANCE,]AZIMUTH,ELEVATION",
+                     help="the camera: azimuth and elevation [deg], fitted to the robot and objects in each "
+                          "picture; or also the point looked at [m] and the distance [m], fixed "
                           "(default: the robot's, from robot.yaml)")
     run.set_defaults(handler=_run)
 
@@ -97,11 +98,15 @@ def _video_settings(args: argparse.Namespace):
             numbers = [float(p) for p in parts]
         except ValueError:
             numbers = []
-        if len(numbers) != 6:
-            raise JointCtlError("must be six numbers X,Y,Z,DISTANCE,AZIMUTH,ELEVATION", field="--video-camera",
-                                value=args.video_camera)
-        camera = CameraView.from_config({"lookat": numbers[:3], "distance_m": numbers[3], "azimuth_deg": numbers[4],
-                                         "elevation_deg": numbers[5]}, field="--video-camera")
+        if len(numbers) not in (2, 6):
+            raise JointCtlError("must be AZIMUTH,ELEVATION (fitted to the scene) or X,Y,Z,DISTANCE,AZIMUTH,ELEVATION",
+                                field="--video-camera", value=args.video_camera)
+        keys = ("azimuth_deg", "elevation_deg") if len(numbers) == 2 else ("x", "y", "z", "distance_m",
+                                                                            "azimuth_deg", "elevation_deg")
+        config = dict(zip(keys, numbers))
+        if len(numbers) == 6:
+            config["lookat"] = [config.pop("x"), config.pop("y"), config.pop("z")]
+        camera = CameraView.from_config(config, field="--video-camera")
     return VideoSettings(fps=args.video_fps, width=width, height=height, camera=camera)
 
 

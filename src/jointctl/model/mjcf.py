@@ -14,7 +14,11 @@ loses the mass of a root fixed to the world. Here:
   ``force`` and ``torque`` sensors;
 - every limited joint's limit is a stiff stop: its solver parameters come from
   the timestep (:func:`limit_solref`, docs/simulation.md), not MuJoCo's soft default;
-- gravity and timestep are given by the caller, not read from the URDF.
+- gravity and timestep are given by the caller, not read from the URDF;
+- a visual without a colour of its own takes its link's default colour: dark grey for the base
+  (the root link and the links fixed to it), then one of :data:`LINK_COLOURS` per other link in
+  the URDF's order, so that a robot whose URDF names no materials is not a grey robot on a grey
+  floor.
 
 :func:`robot_spec` is the robot alone (what :mod:`jointctl.model.dynamics` computes
 with); the simulated world (:mod:`jointctl.sim.mjcf_builder`) starts from
@@ -40,6 +44,16 @@ _GEOM_TYPES = {
 }
 VISUAL_GROUP = 2
 COLLISION_GROUP = 3
+#: Default colours (RGBA, 0..1) of links whose visuals name none: the base's, then the others' in turn.
+ROOT_LINK_COLOUR = (0.35, 0.36, 0.4, 1.0)
+LINK_COLOURS = (
+    (0.22, 0.47, 0.78, 1.0),  # blue
+    (0.95, 0.55, 0.15, 1.0),  # orange
+    (0.3, 0.66, 0.36, 1.0),   # green
+    (0.83, 0.27, 0.27, 1.0),  # red
+    (0.58, 0.42, 0.74, 1.0),  # violet
+    (0.2, 0.7, 0.74, 1.0),    # teal
+)
 
 
 # -- joint limits as stops ------------------------------------------------------
@@ -213,9 +227,28 @@ class _Builder:
         for k, shape in enumerate(link.collisions):
             self.add_geom(body, shape, f"{link.name}_collision_{k}", collision=True)
         for k, shape in enumerate(link.visuals):
-            self.add_geom(body, shape, f"{link.name}_visual_{k}", collision=False)
+            self.add_geom(body, shape, f"{link.name}_visual_{k}", collision=False,
+                          default_rgba=self.default_colour(link.name))
 
-    def add_geom(self, body, shape: Shape, name: str, *, collision: bool) -> None:
+    def default_colour(self, link_name: str) -> tuple[float, float, float, float]:
+        """The colour of ``link_name``'s visuals that name none (see the module docstring)."""
+        base = self.base_links()
+        if link_name in base:
+            return ROOT_LINK_COLOUR
+        moving = [link.name for link in self.robot.links if link.name not in base]
+        return LINK_COLOURS[moving.index(link_name) % len(LINK_COLOURS)]
+
+    def base_links(self) -> set[str]:
+        """The root link and the links fixed to it (through fixed joints only): the robot's base."""
+        base, todo = set(), [self.robot.root_link]
+        while todo:
+            name = todo.pop()
+            base.add(name)
+            todo.extend(j.child for j in self.robot.child_joints(name) if j.type == "fixed")
+        return base
+
+    def add_geom(self, body, shape: Shape, name: str, *, collision: bool,
+                 default_rgba: tuple[float, float, float, float] = ROOT_LINK_COLOUR) -> None:
         g = shape.geometry
         kwargs = dict(name=name, type=_GEOM_TYPES[g.kind], pos=list(shape.origin.xyz),
                       quat=list(rpy_to_quat(shape.origin.rpy)))
@@ -231,8 +264,7 @@ class _Builder:
             kwargs.update(group=COLLISION_GROUP, contype=1, conaffinity=1, rgba=[0.5, 0.5, 0.9, 0.0])
         else:
             kwargs.update(group=VISUAL_GROUP, contype=0, conaffinity=0)
-            if shape.rgba is not None:  # the URDF's colour (MuJoCo's grey otherwise)
-                kwargs["rgba"] = list(shape.rgba)
+            kwargs["rgba"] = list(shape.rgba if shape.rgba is not None else default_rgba)
         body.add_geom(**kwargs)
 
     def mesh(self, path: str, scale) -> str:

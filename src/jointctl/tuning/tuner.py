@@ -27,6 +27,7 @@ from jointctl.scenario.session import Session, object_spawner
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.objects import ObjectSpec, object_from_config
 from jointctl.commands.sources import CommandSource, command_source_from_config
+from jointctl.visuals.framing import fitted_view
 from jointctl.visuals.video import robot_camera
 from jointctl.tuning.gains import GainGroup, gain_groups, gains_yaml
 from jointctl.tuning.live_buffer import LiveBuffer
@@ -35,6 +36,7 @@ from jointctl.tuning.requests import Control, RequestError, SelectJoint, SetGain
 from jointctl.tuning.scene_view import SceneTap
 
 DEFAULT_WINDOW_S = 60.0  # loop time kept for plots and measurements [s]
+PAGE_VIEW_ASPECT = 4 / 3  # the 3D view the robot's camera is first fitted for (width / height)
 
 
 @dataclasses.dataclass
@@ -93,6 +95,7 @@ class Tuner:
         self.scene: SceneTap | None = None
         if session.world is not None:
             camera = robot_camera(scenario.robot.extras, source=str(scenario.robot.folder / "robot.yaml"))
+            camera = fitted_view(session.world.model, session.world.data, camera, aspect=PAGE_VIEW_ASPECT)
             self.scene = SceneTap(session.world, camera=dataclasses.asdict(camera))
             self.loop.add_observer(self.scene)
         for name, config in scenario.commands.items():

@@ -6,6 +6,9 @@ the loop runs, so a video never slows the loop or changes the trace. :func:`writ
 each kept state with :class:`~jointctl.sim.rendering.OffscreenRenderer` from the robot's camera
 (``video.camera`` in its ``robot.yaml``, or the one given) and writes ``video.mp4`` (H.264 through
 Debian's ``ffmpeg``) and a small animated ``video.gif`` (Pillow, at most ``GIF_WIDTH`` pixels wide).
+By default the camera only says the direction it looks from; where it stands is fitted to the robot
+and the objects in each picture (:mod:`jointctl.visuals.framing`), and each picture carries the
+loop time in its top left corner.
 """
 
 from __future__ import annotations
@@ -20,10 +23,12 @@ import numpy as np
 
 from jointctl.errors import JointCtlError
 from jointctl.sim.rendering import CameraView, OffscreenRenderer
+from jointctl.visuals.framing import framed_views
 
 #: The GIF's largest width [px] (the MP4 has the full size).
 GIF_WIDTH = 320
-DEFAULT_CAMERA = {"lookat": [0.0, 0.0, 0.8], "distance_m": 4.0, "azimuth_deg": 90.0, "elevation_deg": -15.0}
+#: The default camera: from the front (-y), a little above; fitted to the scene.
+DEFAULT_CAMERA = {"azimuth_deg": 90.0, "elevation_deg": -15.0}
 
 
 @dataclass(frozen=True)
@@ -80,11 +85,19 @@ class FrameCapture:
             self.frames.append((self.world.model, self.world.data.qpos.copy(), time_s))
 
 
+def time_stamp(time_s: float) -> str:
+    """The text a picture carries: the loop time [s]."""
+    return f"t = {time_s:.2f} s"
+
+
 def render_frames(frames, settings: VideoSettings, camera: CameraView) -> list[np.ndarray]:
-    """Each kept state drawn from ``camera``: a list of (height, width, 3) uint8 pictures."""
+    """Each kept state drawn from ``camera`` (fitted to each one when it is a fitted view), stamped
+    with its loop time: a list of (height, width, 3) uint8 pictures."""
+    views = framed_views(frames, camera, settings.width, settings.height)
     renderer = OffscreenRenderer(settings.width, settings.height)
     try:
-        return [renderer.render(model, qpos, camera) for model, qpos, _ in frames]
+        return [renderer.render(model, qpos, view, stamp=time_stamp(time_s))
+                for (model, qpos, time_s), view in zip(frames, views)]
     finally:
         renderer.close()
 
@@ -139,4 +152,4 @@ def _write_gif(pictures: list[np.ndarray], path: Path, fps: float) -> Path:
 
 
 __all__ = ["DEFAULT_CAMERA", "FrameCapture", "GIF_WIDTH", "VideoSettings", "gif_timing", "render_frames",
-           "robot_camera", "write_video"]
+           "robot_camera", "time_stamp", "write_video"]
