@@ -7,8 +7,8 @@ step and a ground plane (:class:`WorldSettings`). Objects are spawned later
 
 The world also carries its scenery, for pictures only (no mass, no contact, no effect on the
 physics): a sky that fades from blue at the zenith to white at the horizon, a light grey floor
-with a grid line every ``GRID_SPACING_M``, drawn to the horizon, and a sun (a directional light from above and behind the default
-camera) whose shadows show where a body stands above the floor.
+with a grid line every ``GRID_SPACING_M``, drawn to the horizon, and a sun (a directional light
+from above and behind the default camera) whose shadows show where a body stands above the floor.
 """
 
 from __future__ import annotations

@@ -189,8 +189,9 @@ class OffscreenRenderer:
 
 def _follow_with_sun(model: mujoco.MjModel, view: CameraView) -> None:
     """Stand the directional lights that cast shadows back from ``view``'s point along their direction."""
+    directional = int(mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
     for light in range(model.nlight):
-        if model.light_castshadow[light] and int(model.light_type[light]) == int(mujoco.mjtLightType.mjLIGHT_DIRECTIONAL):
+        if model.light_castshadow[light] and int(model.light_type[light]) == directional:
             direction = model.light_dir[light] / np.linalg.norm(model.light_dir[light])
             model.light_pos[light] = np.asarray(view.lookat) - direction * SUN_DISTANCE_IN_VIEWS * view.distance_m
 
