@@ -395,6 +395,23 @@ if __name__ != "__main__":
         adapted = yaml.safe_load(rviz_config_text("base_link"))
         assert adapted["Visualization Manager"]["Global Options"]["Fixed Frame"] == "base_link"
 
+    def test_rviz_is_fitted_to_the_robot_where_the_node_starts():
+        from jointctl.ros.robot_description import rviz_config_text, robot_bounds
+        from jointctl.ros.rviz_layout import rviz_layout
+        from jointctl.scenario.session import Session
+        from jointctl.scenario.spec import load_scenario
+
+        with Session(load_scenario("one_dof_step")) as session:  # the piston at -0.2 m
+            lowest, highest = robot_bounds(session)
+        # link1 (the base, from the floor) to the sensor disk's top: 1 m + q + 1 m link2 + the disk.
+        assert lowest[2] == pytest.approx(0.0, abs=1e-6) and 1.8 <= highest[2] <= 1.9
+        layout = rviz_layout(lowest, highest, (1920, 1080))
+        config = yaml.safe_load(rviz_config_text("world", layout))
+        assert config["Visualization Manager"]["Views"]["Current"]["Focal Point"]["Z"] == pytest.approx(
+            (lowest[2] + highest[2]) / 2, abs=1e-3)
+        assert config["Window Geometry"]["Width"] == layout.window_px[2]
+        assert config["Visualization Manager"]["Global Options"]["Fixed Frame"] == "world"
+
 
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "client":

@@ -19,7 +19,8 @@
   removed object's markers are deleted (``DELETE``) in the next message. Simulation only.
 - ``serve --rviz`` (:class:`Viewers`): starts ``robot_state_publisher`` (with the remap) and
   ``rviz -d`` with the shipped configuration (:data:`RVIZ_CONFIG`, fixed frame set to the URDF's root
-  link) as child processes, stopped with SIGINT when the node stops. Whatever cannot start (not
+  link, window sized to the screen and view fitted to the robot where the node starts:
+  :mod:`jointctl.ros.rviz_layout`) as child processes, stopped with SIGINT when the node stops. Whatever cannot start (not
   installed, no display) is said in one line on stderr and the node serves on.
 """
 
@@ -35,13 +36,19 @@ import tempfile
 import threading
 from pathlib import Path
 
+import mujoco
+import numpy as np
 import rospy
+import yaml
 from geometry_msgs.msg import Point, Quaternion
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.model.loader import description_text
+from jointctl.model.mjcf import compile_robot
+from jointctl.ros.rviz_layout import RvizLayout, apply_layout, rviz_layout, screen_size_px
+from jointctl.sim.scene_bounds import drawn_bounds, robot_bodies
 
 ROBOT_DESCRIPTION_PARAM = "/robot_description"
 OBJECT_MARKERS_TOPIC = "/jointctl/object_markers"
@@ -89,6 +96,8 @@ class RobotDescription:
         self.urdf = robot_description_text(self.robot)
         rospy.set_param(ROBOT_DESCRIPTION_PARAM, self.urdf)
         self.joint_states_topic = joint_states_topic(node)
+        #: The robot's drawn box [m] as the node starts (rviz's view is fitted to it).
+        self.bounds = robot_bounds(session)
         self.markers = None
         if session.hardware.simulation is not None:
             self.markers = ObjectMarkers(session.hardware.simulation, session.loop, node.clock, self.root_link)
@@ -187,9 +196,30 @@ def robot_state_publisher_command(executable: str, joint_states: str) -> list[st
     return [executable, f"joint_states:={joint_states}", "__name:=robot_state_publisher"]
 
 
-def rviz_config_text(fixed_frame: str) -> str:
-    """The shipped rviz configuration (fixed frame ``world``) with its fixed frame set to ``fixed_frame``."""
-    return RVIZ_CONFIG.read_text().replace("    Fixed Frame: world\n", f"    Fixed Frame: {fixed_frame}\n")
+def rviz_config_text(fixed_frame: str, layout: RvizLayout | None = None) -> str:
+    """The shipped rviz configuration (fixed frame ``world``) with its fixed frame set to ``fixed_frame``
+    and, given a ``layout``, its window, view and TF axes from it."""
+    text = RVIZ_CONFIG.read_text().replace("    Fixed Frame: world\n", f"    Fixed Frame: {fixed_frame}\n")
+    if layout is None:
+        return text
+    header = "".join(line + "\n" for line in text.splitlines() if line.startswith("#"))
+    return header + yaml.safe_dump(apply_layout(yaml.safe_load(text), layout), sort_keys=False)
+
+
+def robot_bounds(session) -> tuple[np.ndarray, np.ndarray]:
+    """The box [m, world frame = the root link's] around the robot's drawn links as the session
+    starts: the simulated world's pose, or on hardware without one the model at zero positions."""
+    world = session.world
+    if world is not None:
+        model, data = world.model, world.data
+        bodies = robot_bodies(model, [obj.name for obj in world.spawned])
+    else:
+        model = compile_robot(session.robot)
+        data = mujoco.MjData(model)
+        bodies = None
+    mujoco.mj_kinematics(model, data)
+    found = drawn_bounds(model, data, bodies)
+    return found if found is not None else (np.zeros(3), np.zeros(3))
 
 
 class Viewers:
@@ -222,9 +252,13 @@ class Viewers:
         else:
             self._tmp = tempfile.mkdtemp(prefix="jointctl-rviz-")
             config = Path(self._tmp) / "jointctl.rviz"
-            config.write_text(rviz_config_text(description.root_link))
+            layout = rviz_layout(*description.bounds, *screen_size_px())
+            config.write_text(rviz_config_text(description.root_link, layout))
             self._spawn("rviz", [rviz, "-d", str(config)])
-            said.append(f"rviz started (fixed frame {description.root_link}, objects on {OBJECT_MARKERS_TOPIC})")
+            width, height = layout.window_px[2:]
+            said.append(f"rviz started (fixed frame {description.root_link}, objects on {OBJECT_MARKERS_TOPIC}; "
+                        f"window {width}x{height} for a screen from {layout.screen_source}, view fitted to the "
+                        "robot)")
         return "jointctl: --rviz: " + "; ".join(said) + "; serving"
 
     def _spawn(self, name: str, command: list[str]) -> None:

@@ -30,7 +30,7 @@ FILL = 0.8
 #: Widening window and averaging window, either side of each moment [s] (GLIDE_S <= HOLD_S).
 HOLD_S = 0.6
 GLIDE_S = 0.4
-#: The box's smallest size [m]: a point-sized scene is framed as this cube.
+#: The box's smallest size [m]: a scene smaller than this every way is framed as this cube.
 MIN_SIZE_M = 0.2
 
 
@@ -49,7 +49,9 @@ def fit_view(lowest, highest, *, azimuth_deg: float, elevation_deg: float, fovy_
     frame (see the module docstring); ``aspect`` is width / height."""
     lowest, highest = np.asarray(lowest, float), np.asarray(highest, float)
     centre = (lowest + highest) / 2
-    half = np.maximum((highest - lowest) / 2, MIN_SIZE_M / 2)
+    half = (highest - lowest) / 2
+    if half.max() < MIN_SIZE_M / 2:
+        half = np.full(3, MIN_SIZE_M / 2)
     corners = centre + half * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
     forward, right, up = camera_axes(azimuth_deg, elevation_deg)
     relative = corners - centre
