@@ -161,3 +161,21 @@ def test_resonance_peak_only_inside_the_range(gains, peak) -> None:
     from jointctl.identification.frequency_response import resonance_peak
 
     assert resonance_peak(gains) == peak
+
+
+def test_the_bode_figure_names_what_it_plots_and_marks_the_bandwidth_and_margins_in_its_svg(tmp_path) -> None:
+    """The SVG beside bode.png, read back: the axis labels, the bandwidth line at the measured -3 dB crossing,
+    the margins' text from the model, and a log frequency axis that spans the sweep (not 100 Hz)."""
+    import re
+
+    model = LoopModel(1.01, 0.0, 400.0, 0.0, 40.0, 0.001, "position", "error")
+    result = analyse(second_order_points(3.0, 0.5), model)
+    write_bode(tmp_path, {**result, "period_s": 0.001, "loop": "position", "derivative": "error"}, "joint1")
+    svg = (tmp_path / "bode.svg").read_text()
+    assert "gain |position / reference| [dB]" in svg and "phase [°]" in svg and "frequency [Hz]" in svg
+    assert 'id="bode-bandwidth"' in svg and 'id="bode-measured-gain"' in svg and 'id="bode-model-gain"' in svg
+    margins = model.margins()
+    assert f"{margins['phase_margin_deg']:.1f}°" in svg and "gain margin" in svg
+    assert f"bandwidth {result['bandwidth_hz']:.3g} Hz" in svg
+    ticks = re.findall(r">(\d+(?:\.\d+)?)</text>", svg)
+    assert {"0.5", "1", "2", "5", "10", "20"} <= set(ticks) and "100" not in ticks  # 1-2-5 over the sweep only

@@ -694,46 +694,77 @@ def _crossing(f: np.ndarray, values: np.ndarray, level: float) -> float:
     return float(math.exp(math.log(f[k - 1]) + s * (math.log(f[k]) - math.log(f[k - 1]))))
 
 
-def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
-    """``bode.png`` (measured points, model curve) and ``metrics.json`` (strict JSON, non-finite figures as
-    null: not measured or unbounded) into ``out_dir``."""
-    import matplotlib
+#: What the Bode figure of a position or a velocity loop plots: the closed loop's output over its reference.
+_BODE_SUBJECT = {"position": "position / reference", "velocity": "velocity / reference"}
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def write_bode(out_dir: str | Path, result: dict, title: str) -> Path:
+    """``bode.png`` and ``bode.svg`` and ``metrics.json`` (strict JSON, non-finite figures as null: not
+    measured or unbounded) into ``out_dir``. The figure: measured gain [dB] and phase [deg] on a log
+    frequency axis spanning the sweep, saturated points crossed out, the model's curves, the -3 dB
+    level and the bandwidth, the resonance peak, and the model's gain and phase margins written in the
+    gain panel (they belong to the loop transfer function, not to the curve drawn). SVG element ids:
+    ``bode-measured-gain``, ``bode-model-gain``, ``bode-bandwidth``, ``bode-resonance``, ``bode-margins``."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    from jointctl.recording.figures import new_figure, save_figure
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    fig, (ax_gain, ax_phase) = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
-    f = np.asarray(result["frequencies_hz"])
+    fig, (ax_gain, ax_phase) = new_figure([1.0, 1.0], size_in=(8.0, 6.0))
+    f = np.asarray(result["frequencies_hz"], dtype=float)
     hit = np.asarray(result.get("saturated", [False] * len(f)), dtype=bool)
-    for ax, key in ((ax_gain, "gain_db"), (ax_phase, "phase_deg")):
-        values = np.asarray(result[key])
-        ax.semilogx(f[~hit], values[~hit], "o", label="measured")
+    for ax, key, what in ((ax_gain, "gain_db", "gain"), (ax_phase, "phase_deg", "phase")):
+        values = np.asarray(result[key], dtype=float)
+        ax.semilogx(f[~hit], values[~hit], "o", color="tab:blue", label="measured", gid=f"bode-measured-{what}")
         if hit.any():
             ax.semilogx(f[hit], values[hit], "x", color="tab:red", markersize=9, markeredgewidth=2,
-                        label="saturated (left out)")
-    if "model" in result:
+                        label="saturated (left out)", gid=f"bode-saturated-{what}")
+    model = result.get("model")
+    if model is not None and len(f):
         dense = np.logspace(math.log10(min(f)), math.log10(max(f)), 400)
-        model = result["model"]
         lm = LoopModel(model["mass"], model["damping"], model["p"], model["i"], model["d"],
                        result["period_s"], result["loop"], result.get("derivative", "error"))
-        g, p = lm.response(dense)
-        ax_gain.semilogx(dense, g, "-", label="model (plant, gains, 1 kHz hold)")
-        ax_phase.semilogx(dense, p, "-", label="model")
-    ax_gain.set_ylabel("gain [dB]")
-    ax_phase.set_ylabel("phase [deg]")
+        g, ph = lm.response(dense)
+        ax_gain.semilogx(dense, g, "-", color="tab:orange", label="model (plant, gains, 1 kHz hold)",
+                         gid="bode-model-gain")
+        ax_phase.semilogx(dense, ph, "-", color="tab:orange", label="model", gid="bode-model-phase")
+        ax_gain.text(0.02, 0.04, _margins_text(model), transform=ax_gain.transAxes, fontsize=8, va="bottom",
+                     bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "0.7"}, gid="bode-margins")
+    ax_gain.axhline(-3.0, color="0.4", linestyle=":", linewidth=1.0, label="-3 dB")
+    bandwidth = result.get("bandwidth_hz")
+    if bandwidth is not None and math.isfinite(bandwidth):
+        for k, ax in enumerate((ax_gain, ax_phase)):
+            ax.axvline(bandwidth, color="tab:green", linestyle="--", linewidth=1.0,
+                       label=f"bandwidth {bandwidth:.3g} Hz" if k == 0 else None,
+                       gid="bode-bandwidth" if k == 0 else "bode-bandwidth-phase")
+    if result.get("resonance_hz") is not None:
+        ax_gain.annotate(f"peak {result['resonance_peak_db']:.1f} dB at {result['resonance_hz']:.3g} Hz",
+                         (result["resonance_hz"], result["resonance_peak_db"]), xytext=(10, -16),
+                         textcoords="offset points", fontsize=8, gid="bode-resonance",
+                         arrowprops={"arrowstyle": "-", "color": "0.4"})
+    if len(f):
+        ax_phase.set_xlim(min(f) / 1.1, max(f) * 1.1)  # the sweep's range, not matplotlib's decades
+    ax_phase.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+    ax_phase.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    ax_phase.xaxis.set_minor_formatter(NullFormatter())
+    subject = _BODE_SUBJECT.get(result.get("loop"), "output / input")
+    ax_gain.set_ylabel(f"gain |{subject}| [dB]")
+    ax_phase.set_ylabel("phase [°]")
     ax_phase.set_xlabel("frequency [Hz]")
     ax_gain.set_title(title)
-    for ax in (ax_gain, ax_phase):
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend()
-    path = out / "bode.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    path = save_figure(fig, (ax_gain, ax_phase), out / "bode.png")
     write_metrics(out, result)  # strict JSON: a figure not measured or unbounded is null
     return path
+
+
+def _margins_text(model: dict) -> str:
+    """The model's stability margins in one line each (∞ where the phase never reaches -180°)."""
+    gm, pm = model.get("gain_margin_db", math.inf), model.get("phase_margin_deg", math.nan)
+    gm_text = "∞" if gm is None or not math.isfinite(gm) else f"{gm:.1f} dB at {model['phase_crossover_hz']:.3g} Hz"
+    pm_text = ("none (the loop gain stays below 1)" if pm is None or not math.isfinite(pm)
+               else f"{pm:.1f}° at {model['gain_crossover_hz']:.3g} Hz")
+    return f"model's loop: gain margin {gm_text}\nphase margin {pm_text}"
 
 
 __all__ = ["LoopModel", "Point", "analyse", "bode", "compare", "held_reference", "loop_controller", "loop_model",

@@ -46,8 +46,8 @@ from numpy.typing import ArrayLike
 
 from jointctl.recording.units import DisplayScale, display_scale, label
 
-__all__ = ["DPI", "FIGSIZE_IN", "MAX_POINTS", "Event", "Level", "Panel", "StepMarks", "marker_id", "not_drawn",
-           "plot_command_and_position", "plot_panels", "plot_series", "plot_step"]
+__all__ = ["DPI", "FIGSIZE_IN", "MAX_POINTS", "Event", "Level", "Panel", "StepMarks", "marker_id", "new_figure",
+           "not_drawn", "plot_command_and_position", "plot_panels", "plot_series", "plot_step", "save_figure"]
 
 FIGSIZE_IN = (8.0, 4.5)
 DPI = 110
@@ -313,15 +313,29 @@ def _draw_events(axes: Sequence[Axes], events: Sequence[Event], zoom: tuple[floa
 
 def _new_figure(title: str, heights: Sequence[float], size_in: tuple[float, float] = FIGSIZE_IN
                 ) -> tuple[Figure, list[Axes]]:
+    fig, axes = new_figure(heights, size_in)
+    axes[0].set_title(title)
+    axes[-1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(True, which="major", alpha=0.4)
+        ax.grid(False, which="minor")
+    return fig, axes
+
+
+def new_figure(heights: Sequence[float], size_in: tuple[float, float] = FIGSIZE_IN) -> tuple[Figure, list[Axes]]:
+    """A figure (no pyplot: safe from any thread) of panels one above the other sharing x, gridded."""
     fig = Figure(figsize=size_in, dpi=DPI)
     FigureCanvasAgg(fig)
     axes = list(np.atleast_1d(fig.subplots(len(heights), 1, sharex=True, squeeze=False,
                                            gridspec_kw={"height_ratios": list(heights)})[:, 0]))
-    axes[0].set_title(title)
-    axes[-1].set_xlabel("time [s]")
     for ax in axes:
-        ax.grid(True, alpha=0.4)
+        ax.grid(True, which="both", alpha=0.4)
     return fig, axes
+
+
+def save_figure(fig: Figure, axes: Sequence[Axes], path: str | os.PathLike[str]) -> Path:
+    """The PNG at ``path`` and the SVG beside it (text kept as text), legends placed first."""
+    return _save(fig, axes, path)
 
 
 def _save(fig: Figure, axes: Sequence[Axes], path: str | os.PathLike[str]) -> Path:
