@@ -1,7 +1,8 @@
 """Videos of runs: drawing cost.
 
 *Frames per second* drawn offscreen (Mesa's software EGL) at 640x480, the 1-DOF drop-weight run's
-states (the robot and the falling weight). *Whole run*: ``one_dof_drop_weight`` with ``--video``
+states (the robot and the falling weight), the camera fitted to each, with the sun's shadows and the
+time stamp; and the same without shadows. *Whole run*: ``one_dof_drop_weight`` with ``--video``
 (25 fps, 640x480, MP4 and GIF) over the same run without, in the same process: the video's cost
 as a multiple of the run's.
 """
@@ -20,7 +21,8 @@ def run() -> list[Result]:
     from jointctl.scenario.session import Session
     from jointctl.scenario.spec import load_scenario
     from jointctl.sim.rendering import OffscreenRenderer
-    from jointctl.visuals.video import FrameCapture, VideoSettings, robot_camera
+    from jointctl.visuals.framing import framed_views
+    from jointctl.visuals.video import FrameCapture, VideoSettings, robot_camera, time_stamp
 
     scenario = load_scenario("one_dof_drop_weight")
     with Session(scenario) as session:
@@ -28,15 +30,18 @@ def run() -> list[Result]:
         session.loop.add_observer(capture)
         session.run()
     camera = robot_camera(scenario.robot.extras)
-    renderer = OffscreenRenderer(640, 480)
-    try:
-        renderer.render(*capture.frames[0][:2], camera)  # the first draw builds the context
-        t0 = time.perf_counter()
-        for model, qpos, _ in capture.frames:
-            renderer.render(model, qpos, camera)
-        fps = len(capture.frames) / (time.perf_counter() - t0)
-    finally:
-        renderer.close()
+    rates = {}
+    for shadows in (True, False):
+        renderer = OffscreenRenderer(640, 480, shadows=shadows)
+        try:
+            t0 = time.perf_counter()
+            views = framed_views(capture.frames, camera, 640, 480)
+            renderer.render(*capture.frames[0][:2], views[0])  # the first draw builds the context
+            for (model, qpos, time_s), view in zip(capture.frames, views):
+                renderer.render(model, qpos, view, stamp=time_stamp(time_s))
+            rates[shadows] = len(capture.frames) / (time.perf_counter() - t0)
+        finally:
+            renderer.close()
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         run_scenario(scenario, Path(tmp) / "plain")
@@ -45,7 +50,8 @@ def run() -> list[Result]:
         run_scenario(scenario, Path(tmp) / "video", video=VideoSettings(fps=25.0, width=640, height=480))
         with_video = time.perf_counter() - t0
     return [
-        Result("video", "frames drawn per second, 640x480", fps, "/s"),
+        Result("video", "frames drawn per second, 640x480, fitted camera, shadows", rates[True], "/s"),
+        Result("video", "frames drawn per second, 640x480, fitted camera, no shadows", rates[False], "/s"),
         Result("video", "drop-weight run with --video / without", with_video / plain, "x"),
     ]
 

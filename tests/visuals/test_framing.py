@@ -161,6 +161,20 @@ def test_the_sky_is_a_gradient_and_the_shadow_falls_on_the_floor_beside_the_robo
     assert floor_rows.min() > SIZE[1] // 3  # on the floor, below the horizon
 
 
+def test_the_floors_grid_lines_are_half_a_metre_apart(renderer) -> None:
+    from jointctl.sim.mjcf_builder import GRID_SPACING_M
+
+    world = MujocoWorld(parse_urdf(urdf_text(), source="planar_arm.urdf"))
+    top_down = CameraView((1.5, 1.5, 0.0), 4.0, azimuth_deg=90.0, elevation_deg=-89.0)
+    floor = renderer.render(world.model, world.data.qpos, top_down, groups=(0,))
+    brightness = floor[SIZE[1] // 2].astype(int).sum(axis=1)  # a row along x through y = 1.5 m
+    dark = np.nonzero(brightness < brightness.max() - 60)[0]
+    lines = [run.mean() for run in np.split(dark, np.nonzero(np.diff(dark) > 1)[0] + 1)]
+    metres_per_px = 0.5 / (renderer.project([2.0, 1.5, 0.0])[0] - renderer.project([1.5, 1.5, 0.0])[0])
+    spacing_m = np.diff(lines) * metres_per_px
+    assert len(lines) >= 4 and np.allclose(spacing_m, GRID_SPACING_M, rtol=0.03), spacing_m
+
+
 def test_each_picture_carries_its_loop_time_in_the_top_left_corner(renderer) -> None:
     world = MujocoWorld(parse_urdf(urdf_text(), source="planar_arm.urdf"))
     view = framed_views(world_frames(world, [None]), FITTED, *SIZE)[0]

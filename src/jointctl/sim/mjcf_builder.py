@@ -42,6 +42,10 @@ GRID_SPACING_M = 0.5
 SKY_ZENITH_RGB = (0.45, 0.62, 0.85)
 SKY_HORIZON_RGB = (0.93, 0.95, 0.98)
 SHADOW_CLIP_IN_EXTENTS = 2.0
+#: The shadow map's size [px] and the floor's drawn quads [m]: MuJoCo's 4096 px and 0.1 m drew a third
+#: as many pictures a second in software OpenGL; the sun's light is the same on every quad of a plane.
+SHADOW_MAP_PX = 1024
+FLOOR_QUAD_M = 2.0
 #: The sun's direction (world frame, pointing where the light goes): down, from behind-left of a
 #: camera that looks along +y.
 SUN_DIRECTION = (0.3, 0.5, -1.0)
@@ -54,13 +58,15 @@ def add_scenery(spec: mujoco.MjSpec) -> None:
     spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
                      mark=mujoco.mjtMark.mjMARK_EDGE, rgb1=[0.82, 0.83, 0.85], rgb2=[0.82, 0.83, 0.85],
                      markrgb=[0.55, 0.57, 0.6], width=64, height=64)
-    # A checker texture holds 2 x 2 squares, repeated texrepeat times a metre (texuniform).
-    grid = spec.add_material(name="grid", texuniform=True, texrepeat=[1 / (2 * GRID_SPACING_M)] * 2)
+    # The texture's edge is marked; on a plane MuJoCo repeats it texrepeat times every 2 m (measured:
+    # tests/visuals/test_framing.py).
+    grid = spec.add_material(name="grid", texuniform=True, texrepeat=[2.0 / GRID_SPACING_M] * 2)
     grid.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "grid"
     spec.visual.rgba.haze = [*SKY_HORIZON_RGB, 1.0]  # where the endless floor meets the sky
     # The sun's shadow map reaches this many model extents from it (MuJoCo's 1 leaves specks of false
     # shadow on the floor near the camera).
     spec.visual.map.shadowclip = SHADOW_CLIP_IN_EXTENTS
+    spec.visual.quality.shadowsize = SHADOW_MAP_PX
     spec.worldbody.add_light(name="sun", type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, castshadow=True,
                              pos=[0.0, 0.0, 3.0], dir=list(SUN_DIRECTION), diffuse=[0.55, 0.55, 0.55],
                              ambient=[0.1, 0.1, 0.1], specular=[0.1, 0.1, 0.1])
@@ -71,7 +77,7 @@ def build_spec(robot: RobotModel, settings: WorldSettings) -> mujoco.MjSpec:
     spec = empty_spec(robot.name, timestep_s=settings.timestep_s, gravity_m_s2=settings.gravity_m_s2)
     if settings.floor:  # added first, as it always was: geom 0 (contact order follows geom order)
         spec.worldbody.add_geom(
-            name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.1],
+            name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, FLOOR_QUAD_M],
             material="grid",
         )
     add_scenery(spec)
