@@ -47,7 +47,7 @@ def test_run_writes_trace_metrics_and_figures(tmp_path):
     assert result.returncode == 0, result.stderr
     metrics = json.loads((tmp_path / "step" / "metrics.json").read_text())
     assert json.loads(result.stdout)["natural_frequency_rad_s"] == metrics["natural_frequency_rad_s"]
-    assert {"trace.csv", "metrics.json", "position.png", "effort.png"} <= {
+    assert {"trace.csv", "metrics.json", "position.png", "effort.png", "run.mcap"} <= {
         p.name for p in (tmp_path / "step").iterdir()}
 
 
@@ -286,9 +286,10 @@ def test_autotune_refuses_bad_input_in_one_line(args, fragments, tmp_path):
 
 def test_run_video_writes_the_videos_next_to_the_trace(tmp_path):
     result = jointctl("run", "one_dof_step", "--set", "duration_s=1.0", "--video", "--video-fps", "10",
-                      "--video-size", "320x240", "--video-camera", "120,-20", "--out", tmp_path)
+                      "--video-size", "320x240", "--video-camera", "120,-20", "--no-mcap", "--out", tmp_path)
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "video.mp4").is_file() and (tmp_path / "video.gif").is_file()
+    assert (tmp_path / "trace.csv").is_file() and not (tmp_path / "run.mcap").exists()  # --no-mcap
     assert json.loads((tmp_path / "metrics.json").read_text())["video"]["frames"] == 10
 
 

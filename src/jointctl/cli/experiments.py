@@ -44,6 +44,8 @@ def add_parsers(sub) -> None:
                      help="the camera: azimuth and elevation [deg], fitted to the robot and objects in each "
                           "picture; or also the point looked at [m] and the distance [m], fixed "
                           "(default: the robot's, from robot.yaml)")
+    run.add_argument("--no-mcap", dest="mcap", action="store_false",
+                     help="do not write run.mcap (the record for Foxglove and PlotJuggler) beside trace.csv")
     run.set_defaults(handler=_run)
 
     demo = sub.add_parser("demo", help="run every built-in experiment and write report.md")
@@ -75,7 +77,8 @@ def _run(args: argparse.Namespace) -> int:
 
         check_display()  # before anything runs
     metrics = run_scenario(scenario, out, realtime=args.realtime or args.view, speed=args.speed,
-                           package_path=tuple(args.package_path), video=_video_settings(args), view=args.view)
+                           package_path=tuple(args.package_path), video=_video_settings(args), view=args.view,
+                           mcap=args.mcap)
     shown = {k: v for k, v in metrics.items() if k not in ("plant",)}
     print(metrics_json(shown))
     say_warnings(metrics)
