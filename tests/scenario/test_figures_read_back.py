@@ -171,3 +171,46 @@ def test_identify_draws_the_residual_below_the_fit(tmp_path, robot, joint, overr
     _, residual = line_points(figure, "series-measured-model", axes_index=1)
     assert 0.5 * fit.residual_rms < math.sqrt(np.mean((residual * factor) ** 2)) < 2.0 * fit.residual_rms
     assert svg(tmp_path, f"identify_{joint}_position").axes[0].ylabel == f"position [{position_unit}]"
+
+
+REJECTED_GOAL = """
+name: one_dof_rejected_goal
+robot: one_dof
+controller_file: trajectory
+start_controllers: [joint_state_controller, joint1_position_controller, joint1_trajectory_controller]
+initial_positions: {joint1: -0.5}
+duration_s: 4.0
+goals:
+  - {controller: joint1_trajectory_controller, at_s: 0.5,
+     trajectory: {joint_names: [joint1], points: [{positions: [-0.4], time_from_start: 1.0}]}}
+  - {controller: joint1_trajectory_controller, at_s: 2.0,
+     trajectory: {joint_names: [joint1], points: [{positions: [5.0], time_from_start: 1.0}]}}
+analysis: {type: trajectory_tracking, joint: joint1, controller: joint1_trajectory_controller}
+"""
+
+
+def test_a_rejected_goal_is_marked_where_it_was_sent_said_in_the_metrics_and_the_record(tmp_path):
+    import json
+
+    from mcap.reader import make_reader
+
+    path = tmp_path / "rejected.yaml"
+    path.write_text(REJECTED_GOAL)
+    metrics = run_scenario(load_scenario(path), tmp_path / "out")
+    [rejected] = metrics["rejected_goals"]
+    assert rejected["time_s"] == pytest.approx(2.0) and "upper limit" in rejected["error"]
+    assert "5.0" in rejected["error"]
+    trace = load_trace(tmp_path / "out" / "trace.csv")
+    q = trace.joint("joint1", "position")
+    # The first goal was delivered (-0.5 -> -0.4 m) and the refused one moved nothing after 2 s.
+    assert q[trace.time_s >= 1.9][0] == pytest.approx(-0.4, abs=2e-3)
+    assert np.ptp(q[trace.time_s >= 1.9]) < 1e-3
+    figure = svg(tmp_path / "out", "position")
+    axes = figure.axes[0]
+    assert axes.x_value(figure.vertical_line_x("event-goal-rejected")) == pytest.approx(2.0, abs=0.01)
+    assert figure.text_of("event-label-goal-rejected") == "goal rejected"
+    with open(tmp_path / "out" / "run.mcap", "rb") as stream:
+        events = [json.loads(message.data) for _, _, message in make_reader(stream).iter_messages(
+            topics=["/jointctl/events"])]
+    [warning] = [e for e in events if e["message"].startswith("goal rejected")]
+    assert warning["timestamp"] == {"sec": 2, "nsec": 0} and warning["level"] == 3 and "5.0" in warning["message"]

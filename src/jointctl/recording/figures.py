@@ -65,7 +65,7 @@ LIMIT_REACH = 0.5
 #: A legend of more entries than this goes beside its axis.
 LEGEND_INSIDE = 6
 
-_EVENT_COLORS = {"spawn": "tab:purple", "contact": "tab:red", "goal": "tab:gray"}
+_EVENT_COLORS = {"spawn": "tab:purple", "contact": "tab:red", "goal": "tab:gray", "rejected": "tab:orange"}
 _LEVEL_STYLES = {"limit": {"color": "tab:red", "linestyle": "--", "linewidth": 1.0},
                  "expected": {"color": "black", "linestyle": ":", "linewidth": 1.2}}
 
@@ -74,7 +74,7 @@ _LEVEL_STYLES = {"limit": {"color": "tab:red", "linestyle": "--", "linewidth": 1
 class Event:
     """A moment of the run drawn as a labelled vertical line on every axis of a figure:
     ``time_s`` [s], ``label`` (e.g. "weight spawned"), ``kind`` choosing its colour: "spawn",
-    "contact", "goal" or anything else (grey)."""
+    "contact", "goal", "rejected" or anything else (grey)."""
 
     time_s: float
     label: str

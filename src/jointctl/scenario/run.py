@@ -73,6 +73,8 @@ def run_scenario(
     rejected = {n: s.rejected_samples for n, s in session.sources.items() if s.rejected_samples}
     if rejected:
         metrics["rejected_command_samples"] = rejected
+    if session.rejected_goals:  # the robot held; the run says why
+        metrics["rejected_goals"] = [{"time_s": t, "error": str(exc)} for t, exc in session.rejected_goals]
     metrics = json_ready(metrics)  # NaN and infinities (never settled, never happened) as null
     write_metrics(out, metrics)
     return metrics

@@ -38,6 +38,7 @@ from jointctl.sim.mjcf_builder import WorldSettings
 from jointctl.hardware.interface import HardwareInterface, SimulationDoor
 from jointctl.sim.world import MujocoWorld
 from jointctl.commands.sources import CommandSource, command_source_from_config
+from jointctl.recording.foxglove_messages import WARNING
 from jointctl.recording.mcap_record import MCAP_FILE, McapRecorder
 from jointctl.recording.trace import TraceRecorder
 from jointctl.commands.sine_trajectory import coarse_sine
@@ -136,7 +137,8 @@ class Session:
         #: Handles of the scenario's trajectory goals, in the order they were sent.
         self.goals: list = []
         #: The goals their executor refused when sent (the loop carries on without them).
-        self.rejected_goals: list[InvalidTrajectory] = []
+        #: Scenario goals the executor refused: (loop time [s], the refusal); nothing moved for them.
+        self.rejected_goals: list[tuple[float, InvalidTrajectory]] = []
         if scenario.goals:
             goals = []
             for k, g in enumerate(scenario.goals):
@@ -178,6 +180,8 @@ class Session:
         try:
             if self.mcap is not None and not self.mcap.closed:
                 self.mcap.add_goal_events(self.goals)
+                for time_s, refusal in self.rejected_goals:
+                    self.mcap.add_event(time_s, f"goal rejected: {refusal}", WARNING)
             if self.recorder is not None:
                 self.recorder.close()
         finally:
@@ -254,7 +258,7 @@ def _goal_sender(session: Session, goals):
             try:
                 session.goals.append(executor.submit(make(executor), now_s=time_s))
             except InvalidTrajectory as exc:
-                session.rejected_goals.append(exc)
+                session.rejected_goals.append((time_s, exc))
 
     return send
 

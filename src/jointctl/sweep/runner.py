@@ -187,7 +187,7 @@ def _run(task: RunTask) -> tuple[dict[str, float | None], dict[str, Any]]:
             session.run()
         session.manager.raise_failures()
         if session.rejected_goals:
-            raise session.rejected_goals[0]
+            raise session.rejected_goals[0][1]
         trace = load_trace(session.trace_path)
         metrics: dict[str, Any] = {}
         if analysis is not None:

@@ -134,7 +134,7 @@ def run_events(session: Session, trace: Trace) -> list[Event]:
     sample after the spawn where a force sensor's reading departs by more than
     :data:`CONTACT_THRESHOLD_N` from its mean over the :data:`UNLOADED_WINDOW_S` before it), and
     each accepted trajectory goal's start and end ("goal start", "goal end: succeeded"; numbered
-    when there are several)."""
+    when there are several), and each refused one when it was sent ("goal rejected")."""
     events: list[Event] = []
     t = trace.time_s
     sensors = [s.name for s in session.robot.sensors
@@ -153,6 +153,9 @@ def run_events(session: Session, trace: Trace) -> list[Event]:
         events.append(Event(float(goal.validated.start_time_s), f"goal{number} start", "goal"))
         if goal.result is not None and goal.result.time_s <= t[-1]:
             events.append(Event(float(goal.result.time_s), f"goal{number} end: {goal.status.value}", "goal"))
+    for time_s, _ in session.rejected_goals:
+        if time_s <= t[-1]:
+            events.append(Event(float(time_s), "goal rejected", "rejected"))
     return events
 
 
