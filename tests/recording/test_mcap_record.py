@@ -185,8 +185,8 @@ def test_events_say_the_spawn_and_the_goal(drop_run):
     events = [(t, m["message"], m["level"]) for t, _, m in by_topic[fm.EVENTS]]
     texts = [text for _, text, _ in events]
     assert (round(0.2e9), "spawned weight", fm.INFO) in events
-    assert any(text.startswith("goal 1 starts") for text in texts)
-    ended = [(t, text) for t, text, _ in events if text.startswith("goal 1 succeeded")]
+    assert any(text.startswith("joint1_trajectory_controller: goal 1 starts") for text in texts)
+    ended = [(t, text) for t, text, _ in events if text.startswith("joint1_trajectory_controller: goal 1 succeeded")]
     assert len(ended) == 1 and 0.5e9 <= ended[0][0] <= 1.2e9
     assert [t for t, _, _ in events] == sorted(t for t, _, _ in events)
 

@@ -1,5 +1,7 @@
 """``jointctl serve --record DIR --foxglove 0``: the served robot streamed to a Foxglove WebSocket client while it
-is commanded over ROS, and recorded into trace.csv and run.mcap (one message per trace row) when it stops."""
+is commanded over ROS (a FollowJointTrajectory goal from actionlib), and recorded into trace.csv and run.mcap (one
+message per trace row, and the ROS clients' goals as events: the one that moved it, and one refused) when it
+stops."""
 
 from __future__ import annotations
 
@@ -15,9 +17,19 @@ from mcap.reader import make_reader
 
 from jointctl.recording import foxglove_messages as fm
 from jointctl.recording.trace import load_trace
-from tests.ros.conftest import run, wait_for_topic
+from pathlib import Path
 
-COMMAND = "/one_DOF_robot/joint1_position_controller/command"
+from tests.ros.conftest import wait_for_topic
+
+CLIENT = str(Path(__file__).with_name("action_client.py"))
+SERVER = "/one_DOF_robot/joint1_trajectory_controller/follow_joint_trajectory"
+
+
+def _follow(ros_env, goal: dict) -> dict:
+    """An actionlib client's final state and result for ``goal`` (action_client.py's JSON)."""
+    result = subprocess.run([sys.executable, CLIENT, "follow", SERVER, json.dumps(goal)], env=ros_env,
+                            capture_output=True, text=True, timeout=90)
+    return json.loads(result.stdout.strip().splitlines()[-1])
 
 
 async def _positions(url: str, count: int) -> list[tuple[int, float]]:
@@ -40,7 +52,7 @@ async def _positions(url: str, count: int) -> list[tuple[int, float]]:
 
 def test_serve_records_and_streams_to_foxglove(ros_env, tmp_path):
     out = tmp_path / "served"
-    process = subprocess.Popen([sys.executable, "-m", "jointctl.cli", "serve", "one_dof", "--controllers", "position",
+    process = subprocess.Popen([sys.executable, "-m", "jointctl.cli", "serve", "one_dof", "--controllers", "trajectory",
                                 "--record", str(out), "--foxglove", "0"], env=ros_env, stderr=subprocess.PIPE,
                                stdout=subprocess.DEVNULL, text=True)
     try:
@@ -51,11 +63,14 @@ def test_serve_records_and_streams_to_foxglove(ros_env, tmp_path):
                 break
         assert url is not None and url.startswith("ws://127.0.0.1:")
         wait_for_topic(ros_env, "/one_DOF_robot/joint_states")
-        run(ros_env, "rostopic", "pub", "-1", COMMAND, "std_msgs/Float64", "--", "-0.3", timeout=30)
+        moved = _follow(ros_env, {"joint_names": ["joint1"], "points": [[0.5, [-0.4]], [1.0, [-0.3]]]})
+        assert moved["state"] == "SUCCEEDED", moved
+        refused = _follow(ros_env, {"joint_names": ["joint1"], "points": [[1.0, [5.0]]]})  # above the 0 m limit
+        assert refused["state"] == "REJECTED", refused
         received = asyncio.run(_positions(url, 200))
         stamps = [s for s, _ in received]
         assert stamps == sorted(set(stamps))
-        assert received[-1][1] > -0.36  # the piston came up towards the command
+        assert abs(received[-1][1] + 0.3) < 0.01  # the piston came up to the goal's -0.3 m and held
     finally:
         process.send_signal(signal.SIGINT)
         _, err = process.communicate(timeout=60)
@@ -67,7 +82,11 @@ def test_serve_records_and_streams_to_foxglove(ros_env, tmp_path):
         counts = reader.get_summary().statistics.channel_message_counts
         topics = {c.id: c.topic for c in reader.get_summary().channels.values()}
         stamps = [m.log_time for _, _, m in reader.iter_messages(topics=[fm.JOINT_STATES])]
+        events = [json.loads(m.data)["message"] for _, _, m in reader.iter_messages(topics=[fm.EVENTS])]
     per_topic = {topics[k]: n for k, n in counts.items()}
     assert len(trace.time_s) > 1000
     assert all(per_topic[t] == len(trace.time_s) for t in fm.PER_CYCLE)
     assert stamps == sorted(stamps) and per_topic[fm.ROBOT_DESCRIPTION] == 1
+    goal_events = [e for e in events if e.startswith("joint1_trajectory_controller: goal ")]
+    assert [e.split(" ")[2:4] for e in goal_events] == [["1", "starts"], ["1", "succeeded"], ["2", "rejected:"]]
+    assert "upper limit" in goal_events[2] and "5.0" in goal_events[2]

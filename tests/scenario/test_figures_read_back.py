@@ -212,5 +212,5 @@ def test_a_rejected_goal_is_marked_where_it_was_sent_said_in_the_metrics_and_the
     with open(tmp_path / "out" / "run.mcap", "rb") as stream:
         events = [json.loads(message.data) for _, _, message in make_reader(stream).iter_messages(
             topics=["/jointctl/events"])]
-    [warning] = [e for e in events if e["message"].startswith("goal rejected")]
+    [warning] = [e for e in events if e["message"].startswith("joint1_trajectory_controller: goal 2 rejected: ")]
     assert warning["timestamp"] == {"sec": 2, "nsec": 0} and warning["level"] == 3 and "5.0" in warning["message"]

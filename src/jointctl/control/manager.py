@@ -405,6 +405,10 @@ class ControllerManager:
     def active(self) -> tuple[Controller, ...]:
         return tuple(self._active)
 
+    def loaded(self) -> tuple[Controller, ...]:
+        """Every controller loaded so far, running or not, in the order loaded."""
+        return tuple(self._loaded.values())
+
     def controller(self, name: str) -> Controller:
         try:
             return self._loaded[name]

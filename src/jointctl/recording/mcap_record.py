@@ -133,18 +133,20 @@ class McapRecorder:
         """An event at loop time ``time_s`` [s] on ``/jointctl/events`` (before :meth:`add_rows` passes it)."""
         self._events.append((nanoseconds(time_s), level, text))
 
-    def add_goal_events(self, goals: Iterable) -> None:
-        """Each trajectory goal's start and end (GoalHandles of the run) as events."""
+    def add_goal_events(self, goals: Iterable, controller: str | None = None) -> None:
+        """Each trajectory goal's start and end (GoalHandles of ``controller``), a rejected one's refusal,
+        as events ("<controller>: goal 2 rejected: ..."; a warning unless it succeeded)."""
+        prefix = f"{controller}: " if controller else ""
         for goal in goals:
             validated = goal.validated
             if validated is not None:
-                self.add_event(validated.start_time_s, f"goal {goal.id} starts ({len(validated.times_s)} points, "
-                                                       f"{validated.duration_s:.3f} s)")
+                self.add_event(validated.start_time_s, f"{prefix}goal {goal.id} starts ({len(validated.times_s)} "
+                                                       f"points, {validated.duration_s:.3f} s)")
             result = goal.result
             if result is not None:
                 level = INFO if result.status.value == "succeeded" else WARNING
                 detail = f": {result.error_string}" if result.error_string else ""
-                self.add_event(result.time_s, f"goal {goal.id} {result.status.value}{detail}", level)
+                self.add_event(result.time_s, f"{prefix}goal {goal.id} {result.status.value}{detail}", level)
 
     # -- after the run --------------------------------------------------------------------------------
     def _merge_pending(self) -> None:

@@ -38,7 +38,6 @@ from jointctl.sim.mjcf_builder import WorldSettings
 from jointctl.hardware.interface import HardwareInterface, SimulationDoor
 from jointctl.sim.world import MujocoWorld
 from jointctl.commands.sources import CommandSource, command_source_from_config
-from jointctl.recording.foxglove_messages import WARNING
 from jointctl.recording.mcap_record import MCAP_FILE, McapRecorder
 from jointctl.recording.trace import TraceRecorder
 from jointctl.commands.sine_trajectory import coarse_sine
@@ -179,9 +178,10 @@ class Session:
         """Write the records: ``trace.csv`` (and ``run.mcap``)."""
         try:
             if self.mcap is not None and not self.mcap.closed:
-                self.mcap.add_goal_events(self.goals)
-                for time_s, refusal in self.rejected_goals:
-                    self.mcap.add_event(time_s, f"goal rejected: {refusal}", WARNING)
+                # Every executor's goals: the scenario's and those of ROS clients (served), refusals too.
+                for controller in self.manager.loaded():
+                    if isinstance(controller, TrajectoryExecutor):
+                        self.mcap.add_goal_events(controller.goals.history, controller.name)
             if self.recorder is not None:
                 self.recorder.close()
         finally:

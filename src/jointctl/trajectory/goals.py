@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import itertools
 import threading
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
@@ -19,6 +20,9 @@ from enum import Enum
 from jointctl.trajectory.errors import InvalidTrajectory, TrajectoryErrorCode
 from jointctl.trajectory.messages import JointTrajectory
 from jointctl.trajectory.validation import ValidatedTrajectory
+
+#: How many goals an executor remembers for the run's record (a served robot may get many).
+HISTORY_LENGTH = 10_000
 
 
 class GoalStatus(Enum):
@@ -107,13 +111,17 @@ class GoalQueue:
         self.active: GoalHandle | None = None
         #: Goals that became active (the chapter's servers report it).
         self.served = 0
+        #: Every goal submitted, rejected ones too, the last HISTORY_LENGTH (a run's record lists them).
+        self.history: deque[GoalHandle] = deque(maxlen=HISTORY_LENGTH)
         self._lock = threading.Lock()
         self._ids = itertools.count(1)
 
     def new(self, trajectory: JointTrajectory, on_feedback: Callable[[TrajectoryFeedback], None] | None = None,
             on_done: Callable[[GoalResult], None] | None = None) -> GoalHandle:
-        """A handle with the next goal id (any thread)."""
-        return GoalHandle(next(self._ids), trajectory, on_feedback, on_done)
+        """A handle with the next goal id (any thread), kept in :attr:`history`."""
+        handle = GoalHandle(next(self._ids), trajectory, on_feedback, on_done)
+        self.history.append(handle)
+        return handle
 
     @staticmethod
     def reject(handle: GoalHandle, error: InvalidTrajectory, time_s: float) -> None:
