@@ -285,6 +285,7 @@
     $("joint").value = name;
     clearData();
     buildCharts();
+    goLive();  // another joint's data: nothing of the paused window is left
   }
 
   // Tick labels: as many decimals as the tick spacing has, never "-0", never two alike.
