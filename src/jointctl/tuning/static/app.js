@@ -355,7 +355,7 @@
                     grid: { show: side === 3 }, values: (u, splits, _, __, step) => splits.map((v) => tickLabel(v, step)) });
       }
       // A blank right axis where a chart has no second one: the time axes of the three line up.
-      if (axes.length === 2) axes.push({ scale: "y", side: 1, size: 72, labelSize: 18, grid: { show: false }, ticks: { show: false }, values: () => [] });
+      if (axes.length === 2) axes.push({ scale: "y", side: 1, size: 72, label: " ", labelSize: 18, grid: { show: false }, ticks: { show: false }, values: () => [] });
       const chart = new uPlot({
         width: chartWidth(element), height: height,
         scales: scaleOptions,
@@ -476,18 +476,16 @@
   }
 
   function draw() {
-    {
-      dirty = false;
-      const [x0, x1] = shownWindow();
-      const start = lowerBound(data.t, x0), end = lowerBound(data.t, x1 + 1e-9);
-      const t = data.t.slice(start, end);
-      for (const chart of charts) {
-        chart.setData([t, ...chart.keys.map((key) => data[key].slice(start, end))], false);
-        chart.setScale("x", { min: x0, max: x1 });
-      }
-      scrubRange();
-      page.draws += 1;
+    dirty = false;
+    const [x0, x1] = shownWindow();
+    const start = lowerBound(data.t, x0), end = lowerBound(data.t, x1 + 1e-9);
+    const t = data.t.slice(start, end);
+    for (const chart of charts) {
+      chart.setData([t, ...chart.keys.map((key) => data[key].slice(start, end))], false);
+      chart.setScale("x", { min: x0, max: x1 });
     }
+    scrubRange();
+    page.draws += 1;
   }
 
   // -- CSV of the window shown --------------------------------------------------------------------------
