@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from jointctl.scenario.spec import scenario_for_robot
@@ -152,3 +153,37 @@ def test_live_analyses_are_refused_when_they_cannot_run(running) -> None:
     with pytest.raises(RequestError, match="paused") as info:
         run_analysis(running, live("identify"))
     assert info.value.field == "live" and running.loop.time_s == time_s
+
+
+def test_the_bode_reply_has_phase_margins_and_curves_matching_the_mass_damper_loop(tuner) -> None:
+    import math
+
+    reply = run_analysis(tuner, parse_request(f'{{"type": "bode", "controller": "{CONTROLLER}"}}'))
+    result = reply["result"]
+    model, curves = result["model"], result["curves"]
+    assert len(result["phase_deg"]) == len(result["gain_db"]) == 16
+    # The sampled loop Kp/(m s² + b s) (m 1.01 kg, b 10 N·s/m, Kp 400 N/m, 1 ms hold): the gain crosses
+    # 0 dB where Kp = ω·√(m²ω² + b²), with the phase margin atan(b/(mω)) less the hold's ω·h/2; the phase
+    # reaches -180° where the hold's lag ω·h/2 takes the damper's b/(mω): ω² = 2b/(m·h).
+    m, b, kp, h = 1.01, 10.0, 400.0, 0.001
+    assert (model["mass"], model["damping"], model["p"], result["period_s"]) == pytest.approx((m, b, kp, h))
+    wc = math.sqrt((-b * b + math.sqrt(b**4 + 4 * m * m * kp * kp)) / (2 * m * m))
+    assert model["gain_crossover_hz"] == pytest.approx(wc / (2 * math.pi), rel=1e-3)
+    assert model["phase_margin_deg"] == pytest.approx(math.degrees(math.atan(b / (m * wc)) - wc * h / 2), abs=0.05)
+    wp = math.sqrt(2 * b / (m * h))
+    assert model["phase_crossover_hz"] == pytest.approx(wp / (2 * math.pi), rel=0.01)
+    assert model["gain_margin_db"] == pytest.approx(-20 * math.log10(kp / (wp * math.hypot(m * wp, b))), abs=0.1)
+    # The curves span the sweep (0.5 to 20 Hz), widened just past the -180° crossing (22.4 Hz), not to 100 Hz.
+    low, high = curves["band_hz"]
+    assert low == pytest.approx(0.5) and 20.0 < model["phase_crossover_hz"] < high < 30.0
+    f = curves["frequencies_hz"]
+    assert f[0] == pytest.approx(low) and f[-1] == pytest.approx(high)
+    # The open loop's gain is 0 dB and its phase -180° + the phase margin at the gain crossover, and its
+    # phase -180° at the phase crossover; the closed loop's curve passes through the model's points.
+    at = lambda key, hz: float(np.interp(math.log(hz), np.log(f), curves[key]))  # noqa: E731
+    assert at("loop_gain_db", model["gain_crossover_hz"]) == pytest.approx(0.0, abs=0.05)
+    assert at("loop_phase_deg", model["gain_crossover_hz"]) == pytest.approx(model["phase_margin_deg"] - 180, abs=0.1)
+    assert at("loop_phase_deg", model["phase_crossover_hz"]) == pytest.approx(-180.0, abs=0.1)
+    assert at("loop_gain_db", model["phase_crossover_hz"]) == pytest.approx(-model["gain_margin_db"], abs=0.05)
+    for hz, gain in zip(result["frequencies_hz"], model["gain_db"]):
+        assert at("closed_gain_db", hz) == pytest.approx(gain, abs=0.05)

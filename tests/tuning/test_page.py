@@ -252,6 +252,17 @@ def test_identify_bode_and_autotune_panels_and_applying_and_reverting_the_gains(
     assert swept["phase_minus_90_hz"] == pytest.approx(math.sqrt(400 / 1.01) / (2 * math.pi), rel=0.01)
     assert page_state(browser, "bodeDrawn") == 1
     assert browser.find_element("id", "plot-bode").is_displayed()
+    # Gain and phase, on a log axis over the sweep (0.5 to 20 Hz, widened to the -180° crossing at 22.4 Hz),
+    # with both margins and their frequencies in the table.
+    bode = browser.execute_script("return window.jointctlPage.bodeCharts.map((c) => [c.scales.x.distr, c.scales.x.min, "
+                                  "c.scales.x.max, c.series.map((s) => s.label), c.data[1].filter((v) => v != null).length]);")
+    assert [b[3][1:] for b in bode] == [["measured", "model", "open loop"]] * 2
+    for distr, low, high, _, measured in bode:
+        assert distr == 3 and low == pytest.approx(0.5) and 22.4 < high < 30 and measured == 16
+    margins = {name: browser.find_element("css selector", f"#analysis td[data-name='{name}']").text
+               for name in ("gain margin", "phase margin")}
+    assert margins["gain margin"].startswith("34.0 dB at 22.") and margins["phase margin"].startswith("27.")
+    assert "at 2.98 Hz" in margins["phase margin"]
 
     type_into(browser, "tune-zeta", "0.7")
     type_into(browser, "tune-bandwidth", "5")
@@ -341,3 +352,139 @@ def test_the_3d_view_moves_the_piston_by_the_commanded_distance_and_shows_the_dr
     browser.find_element("id", "drop").click()
     wait_for(lambda: "weight" in view3d(browser, "window.jointctl3d.bodies()"), what="the weight in the 3D view")
     wait_for(lambda: view3d(browser, "window.jointctl3d.position('weight')[2] < 3.0"), what="the weight falling")
+
+
+def rect(driver, selector: str) -> dict:
+    return driver.execute_script(
+        "const r = document.querySelector(arguments[0]).getBoundingClientRect();"
+        "return {left: r.left, top: r.top, right: r.right, bottom: r.bottom};", selector)
+
+
+def chart(driver, index: int, expression: str):
+    return driver.execute_script(f"const c = window.jointctlPage.charts[{index}]; return {expression};")
+
+
+def test_the_page_at_1400x1000_plots_beside_3d_view_zoom_pause_scrub_csv_force_axis_and_the_scenarios_step(browser,
+                                                                                                          tune):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.actions.wheel_input import ScrollOrigin
+
+    server = tune("scenarios/one_dof_step.yaml")
+    open_page(browser, server)
+    wait_for(lambda: (page_state(browser, "lastTime") or 0) > 1.5 and view3d(browser, "window.jointctl3d.frames > 0"),
+             what="data and the 3D view")
+
+    # The plots and the 3D view are in the window together, side by side, without scrolling.
+    width, height = browser.execute_script("return [window.innerWidth, window.innerHeight];")
+    boxes = {name: rect(browser, selector) for name, selector in
+             (("position", "#plot-position"), ("velocity", "#plot-velocity"), ("effort", "#plot-effort"),
+              ("view", "#view3d canvas"))}
+    for name, box in boxes.items():
+        assert 0 <= box["left"] < box["right"] <= width and 0 <= box["top"] < box["bottom"] <= height, (name, box)
+    for name in ("position", "velocity", "effort"):
+        plot, view = boxes[name], boxes["view"]
+        assert plot["right"] <= view["left"] or plot["bottom"] <= view["top"], (name, plot, view)
+    assert browser.execute_script("return document.scrollingElement.scrollTop;") == 0
+    # The robot is framed in the middle of the 3D view, not at its bottom.
+    left, top, right, bottom, canvas_w, canvas_h = view3d(browser, "window.jointctl3d.drawnBounds()")
+    assert 0 < left < right < canvas_w and 0 < top < bottom < canvas_h
+    assert (top + bottom) / 2 == pytest.approx(canvas_h / 2, abs=0.1 * canvas_h)
+    assert bottom - top > 0.4 * canvas_h
+
+    # The scenario's own step (from -0.2 m to -0.5 m at 0.5 s) is the source shown, with its measurements.
+    assert browser.find_element("id", "source-type").get_attribute("value") == "step"
+    assert [browser.find_element("id", f).get_attribute("value") for f in ("step-from", "step-to", "step-at")] == \
+        ["-0.2", "-0.5", "0.5"]
+    assert "the scenario's own source" in browser.find_element("id", "source-now").text
+    wait_for(lambda: (page_state(browser, "measure") or {}).get("complete"), what="the step's final measurement")
+    assert "the scenario's own" in browser.find_element("id", "measure-kind").text
+    for key in ("rise_time_s", "overshoot_pct", "settling_time_s"):
+        assert float(browser.find_element("id", f"measure-{key}").get_attribute("data-value")) > 0
+
+    # Tick labels at rest: the velocity axis (noise of micrometres per second) spans at least 0.01 m/s, its
+    # labels are all different and none reads "-0".
+    labels = chart(browser, 1, "c.axes[1]._values")
+    assert labels and len(set(labels)) == len(labels) and "-0" not in labels, labels
+    assert chart(browser, 1, "c.scales.y.max - c.scales.y.min") >= 0.01
+    assert browser.execute_script("return window.jointctlPage.tickLabel(-1e-17, 0.0025);") == "0"
+
+    # The late-cycle figure says what it counts and when it is too many.
+    late = browser.find_element("id", "late")
+    assert "finished after their deadline" in late.get_attribute("title") and "1.00 %" in late.get_attribute("title")
+    assert ("too-many" in late.get_attribute("class")) == page_state(browser, "late")["tooMany"]
+    verdict = lambda history: browser.execute_script(  # noqa: E731
+        "return window.jointctlPage.lateFigures(arguments[0], 0.01);", history)
+    assert not verdict([[0, 0, 100000], [5000, 5, 101000]])["tooMany"]  # 0.5 % recently
+    assert verdict([[0, 0, 100000], [5000, 50, 102000]])["tooMany"]  # 2.5 % recently, 0.05 % overall
+
+    # Wheel over the position plot: its y axis zooms in about the pointer, and stays zoomed as data come;
+    # double-click (or Reset zoom) fits it to the data again. (A 60 s window keeps the step in it.)
+    choose(browser, "window", "60")
+    over = browser.find_element("css selector", "#plot-position .u-over")
+    span = lambda: chart(browser, 0, "c.scales.y.max - c.scales.y.min")  # noqa: E731
+    fitted = lambda: chart(browser, 0, "Object.keys(c.yManual).length === 0") and span() > 1.2 * zoomed  # noqa: E731
+    before = span()
+    for undo in ("dblclick", "zoom-reset"):
+        ActionChains(browser).scroll_from_origin(ScrollOrigin.from_element(over), 0, -200).perform()
+        wait_for(lambda: span() < 0.8 * before, what="the y axis zoomed in")
+        zoomed, draws = span(), page_state(browser, "draws")
+        wait_for(lambda: page_state(browser, "draws") > draws + 5, what="more redraws")
+        assert span() == pytest.approx(zoomed)
+        if undo == "dblclick":
+            browser.execute_script("arguments[0].dispatchEvent(new MouseEvent('dblclick', {bubbles: true}));", over)
+        else:
+            browser.find_element("id", undo).click()
+        wait_for(fitted, what=f"the y axis fitted again ({undo})")
+
+    # The weight lands on the sensor: the force has an axis of its own (right), the effort axis is not
+    # stretched to the impact's force; the 3D view kept the weight in view as it fell.
+    assert chart(browser, 2, "c.series.map((s) => s.scale)") == ["x", "y", "force"]
+    assert chart(browser, 2, "c.axes.map((a) => [a.scale, a.side])") == [["x", 2], ["y", 3], ["force", 1]]
+    click_and_wait(browser, "drop")
+    seen_falling = []
+
+    def landed():
+        z = view3d(browser, "window.jointctl3d.position('weight') && window.jointctl3d.position('weight')[2]")
+        if z and z < 3.5:
+            drawn = browser.execute_script("return window.jointctl3d.project(...window.jointctl3d.position('weight'));")
+            size = view3d(browser, "window.jointctl3d.drawnBounds().slice(4)")
+            seen_falling.append(0 <= drawn[0] <= size[0] and 0 <= drawn[1] <= size[1])
+        return browser.execute_script("return Math.min(...window.jointctlPage.series().force.slice(-2000)) < -100;")
+
+    wait_for(landed, timeout_s=20, what="the weight's impact on the sensor")
+    assert seen_falling and all(seen_falling)
+    time.sleep(0.3)
+    # (one read: the data and the scales of the same redraw)
+    effort, force, scales, shown = chart(browser, 2, "[c.data[1], c.data[2], [c.scales.y.min, c.scales.y.max, "
+                                         "c.scales.force.min, c.scales.force.max], [c.scales.x.min, c.scales.x.max]]")
+    effort, force = [v for v in effort if v is not None], [v for v in force if v is not None]
+    assert scales[2] <= min(force) < -100 and scales[0] > min(force), (scales, shown, min(force))
+    assert scales[0] <= min(effort) and scales[1] >= max(effort), (scales, shown, min(effort), max(effort))
+
+    # Pause the plots: the window shown stays while the server keeps sending; the slider and a drag scrub back.
+    choose(browser, "window", "2")
+    wait_for(lambda: chart(browser, 0, "c.scales.x.max - c.scales.x.min") == pytest.approx(2.0), what="a 2 s window")
+    browser.find_element("id", "freeze").click()
+    shown = chart(browser, 0, "[c.scales.x.min, c.scales.x.max, c.data[0][c.data[0].length - 1]]")
+    points = page_state(browser, "points")
+    wait_for(lambda: page_state(browser, "points") > points + 250, what="a second more of data")
+    assert chart(browser, 0, "[c.scales.x.min, c.scales.x.max, c.data[0][c.data[0].length - 1]]") == shown
+    assert browser.find_element("id", "live").is_enabled()
+    browser.execute_script("const s = document.getElementById('scrub'); s.value = arguments[0];"
+                           "s.dispatchEvent(new Event('input'));", shown[1] - 1.0)
+    wait_for(lambda: chart(browser, 0, "c.scales.x.max") == pytest.approx(shown[1] - 1.0, abs=0.01), what="scrubbed")
+    ActionChains(browser).move_to_element(over).click_and_hold().move_by_offset(200, 0).release().perform()
+    wait_for(lambda: chart(browser, 0, "c.scales.x.max") < shown[1] - 1.3, what="dragged back in time")
+
+    # CSV of the window shown: a header with units, then its rows, as plotted.
+    csv = browser.execute_script("return window.jointctlPage.csv();").splitlines()
+    assert csv[0] == ("time (s),joint1 reference (m),joint1 position (m),joint1 velocity (m/s),joint1 effort (N),"
+                      "joint1 sensor force z (N)")
+    x0, x1, plotted = chart(browser, 0, "[c.scales.x.min, c.scales.x.max, c.data[0].length]")
+    rows = [[float(v) for v in line.split(",")] for line in csv[1:]]
+    assert len(rows) == plotted > 100 and x0 <= rows[0][0] and rows[-1][0] <= x1
+    first = chart(browser, 0, "[c.data[0][0], c.data[1][0], c.data[2][0]]")
+    assert rows[0][:3] == first and rows[0][4:] == chart(browser, 2, "[c.data[1][0], c.data[2][0]]")
+    browser.find_element("id", "live").click()
+    wait_for(lambda: chart(browser, 0, "c.scales.x.max") >= page_state(browser, "lastTime") - 0.1, what="live again")
+    save_artifact(browser, "tuning_page_1400x1000.png")

@@ -293,3 +293,49 @@ def test_without_a_simulation_door_gravity_and_the_weight_are_refused_clearly(tu
             ask(tuner, **message)
         assert caught.value.field == field
     assert tuner.status()["gravity_z_m_s2"] is None
+
+
+def test_a_scenarios_own_step_is_shown_as_its_source_and_measured_after_its_record_has_left_the_buffer(tmp_path):
+    from jointctl.scenario.spec import load_scenario
+
+    tuner = Tuner(load_scenario("one_dof_step"), out_dir=tmp_path, window_s=4.0)
+    try:
+        step_source = {"type": "step", "from": -0.2, "to": -0.5, "at": 0.5}
+        assert tuner.describe()["sources"] == {POSITION: {**step_source, "origin": "scenario"}}
+        assert tuner.status()["source_origins"] == {POSITION: "scenario"}
+        run(tuner, 3.0)  # the step (at 0.5 s) settles by 1.3 s, and is measured
+        final = tuner.measurement()
+        assert final["kind"] == "step" and final["complete"] and final["source"]["origin"] == "scenario"
+        wn = math.sqrt(400 / MOVING_MASS_KG)
+        assert final["values"]["natural_frequency_rad_s"] == pytest.approx(wn, rel=0.01)
+        run(tuner, 4.0)  # the 4 s buffer no longer holds the step: the final figures stay
+        assert tuner.buffer.rows(0, 1, [0])[1] > 0.5 / tuner.period_s
+        assert tuner.measurement()["values"] == final["values"]
+        # A source from the page replaces the scenario's own.
+        ask(tuner, type="source", controller=POSITION, source={"type": "constant", "value": -0.4})
+        run(tuner, 0.01)
+        assert tuner.status()["source_origins"] == {POSITION: "page"}
+    finally:
+        tuner.close()
+
+
+def test_late_cycles_and_cycles_are_counted_over_the_runners_pacing_clocks(tuner):
+    from jointctl.tuning.runner import CountingPacer
+
+    assert tuner.timing() == (0, 0)  # simulated time: nothing paced, nothing late
+    first = CountingPacer(1.0)
+    tuner.loop.clock = first
+    first.cycles, first.overruns = 1000, 7
+    assert tuner.timing() == (7, 1000)
+    tuner.close_timing(first)  # the run ended (a pause): counted once, not again while the loop stands
+    assert tuner.timing() == (7, 1000)
+    second = CountingPacer(1.0)
+    tuner.loop.clock = second
+    second.cycles, second.overruns = 500, 1
+    status = tuner.status()
+    assert (status["late_cycles"], status["cycles"], status["overruns"]) == (8, 1500, 8)
+    # The pacer counts every cycle it paces.
+    second.start()
+    for k in range(3):
+        second.wait_for(k * 1e-3)
+    assert second.cycles == 503

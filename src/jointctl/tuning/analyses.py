@@ -15,7 +15,14 @@ the gains the analysis started from). Replies (``live``: where it ran)::
     {"type": "analysis", "request": "identify", "controller": C, "live": false,
         "result": {mass_kg, damping..., r_squared}}
     {"type": "analysis", "request": "bode", "controller": C, "result": {frequencies_hz, gain_db, phase_deg,
-        model: {gain_db, phase_deg, margins...}, bandwidth_hz, resonance_hz, phase_minus_90_hz...}}
+        model: {gain_db, phase_deg, gain_margin_db, phase_crossover_hz, phase_margin_deg, gain_crossover_hz...},
+        bandwidth_hz, resonance_hz, phase_minus_90_hz..., curves: {band_hz, frequencies_hz, closed_gain_db,
+        closed_phase_deg, loop_gain_db, loop_phase_deg}}}
+
+The Bode reply's ``curves`` are the loop model's on a dense log grid (:data:`CURVE_POINTS`) over the
+sweep's band, widened to take in the margins' frequencies when they lie within a decade of it: the
+closed loop (reference -> response) and the open loop (broken at the plant input; its 0 dB crossing
+gives the phase margin, its -180° crossing the gain margin).
     {"type": "analysis", "request": "autotune", "controller": C, "result": {gains, previous_gains, model,
         robot: {step_overshoot_pct, bandwidth_hz...}}}
 """
@@ -37,6 +44,7 @@ from jointctl.tuning.requests import Analyse, RequestError
 #: The Bode panel's sweep: 16 log-spaced frequencies over this band [Hz].
 BODE_BAND_HZ = (0.5, 20.0)
 BODE_POINTS = 16
+CURVE_POINTS = 200
 
 
 def live_copy(tuner, overrides=()) -> Scenario:
@@ -131,6 +139,34 @@ def bode_frequencies() -> np.ndarray:
     return np.logspace(math.log10(BODE_BAND_HZ[0]), math.log10(BODE_BAND_HZ[1]), BODE_POINTS)
 
 
+def model_curves(result: dict[str, Any]) -> dict[str, Any] | None:
+    """The Bode reply's ``curves`` (see the module docstring) for a :func:`~jointctl.identification.
+    frequency_response.compare` result; None when it has no model."""
+    from jointctl.identification.frequency_response import LoopModel
+
+    model = result.get("model")
+    measured = [f for f in result.get("frequencies_hz", []) if f > 0]
+    if not model or not measured:
+        return None
+    loop = LoopModel(model["mass"], model["damping"], model["p"], model["i"], model["d"], result["period_s"],
+                     result["loop"], result.get("derivative", "error"))
+    low, high = min(measured), max(measured)
+    nyquist = 0.49 / result["period_s"]
+    for key in ("gain_crossover_hz", "phase_crossover_hz"):
+        f = model.get(key)
+        if f is not None and math.isfinite(f) and low / 10 <= f <= high * 10:
+            low, high = min(low, f / 1.2), max(high, f * 1.2)
+    high = min(high, nyquist)
+    f = np.logspace(math.log10(low), math.log10(high), CURVE_POINTS)
+    closed_gain, closed_phase = loop.response(f)
+    open_loop = loop.loop_response(f)
+    open_phase = np.degrees(np.unwrap(np.angle(open_loop)))
+    open_phase -= 360.0 * np.round((open_phase[0] + 90.0) / 360.0)  # start near -90° (one integrator), not +270°
+    return {"band_hz": [low, high], "frequencies_hz": f.tolist(), "closed_gain_db": closed_gain.tolist(),
+            "closed_phase_deg": closed_phase.tolist(), "loop_gain_db": (20 * np.log10(np.abs(open_loop))).tolist(),
+            "loop_phase_deg": open_phase.tolist()}
+
+
 def run_analysis(tuner, request: Analyse) -> dict[str, Any]:
     """Run ``request`` on a simulated copy of the page's robot, or on the robot itself when it is
     ``live`` (see the module docstring)."""
@@ -144,6 +180,8 @@ def run_analysis(tuner, request: Analyse) -> dict[str, Any]:
                            field="controller", value=request.controller)
     if request.live:
         result = run_live(tuner, request, controller)
+        if request.kind == "bode":
+            result["curves"] = model_curves(result)
         return {"type": "analysis", "request": request.kind, "controller": request.controller, "live": True,
                 "result": result}
     if tuner.sim is None:
@@ -154,6 +192,7 @@ def run_analysis(tuner, request: Analyse) -> dict[str, Any]:
         result = metrics
     elif request.kind == "bode":
         result = bode(live_copy(tuner), request.controller, bode_frequencies())
+        result["curves"] = model_curves(result)
     else:
         result = autotune(lambda overrides: live_copy(tuner, overrides), request.controller,
                           bandwidth_hz=request.spec["bandwidth_hz"], zeta=request.spec["zeta"],
@@ -162,4 +201,5 @@ def run_analysis(tuner, request: Analyse) -> dict[str, Any]:
             "result": result}
 
 
-__all__ = ["BODE_BAND_HZ", "BODE_POINTS", "LiveSession", "bode_frequencies", "live_copy", "run_analysis", "run_live"]
+__all__ = ["BODE_BAND_HZ", "BODE_POINTS", "CURVE_POINTS", "LiveSession", "bode_frequencies", "live_copy", "model_curves",
+           "run_analysis", "run_live"]

@@ -18,6 +18,18 @@ SWITCH_INTERVAL_S = 2e-4  # GIL hand-over interval: the loop thread gets the GIL
 PAUSED_POLL_S = 0.01  # how often a paused runner applies queued changes [s]
 
 
+class CountingPacer(WallClockPacer):
+    """The wall-clock pacer, counting the cycles it paced (``cycles``) beside the late ones (``overruns``)."""
+
+    def __init__(self, speed: float = 1.0) -> None:
+        super().__init__(speed)
+        self.cycles = 0
+
+    def wait_for(self, loop_time_s: float) -> None:
+        self.cycles += 1
+        super().wait_for(loop_time_s)
+
+
 class LiveRunner:
     """Runs ``tuner``'s loop on a thread of its own at ``speed`` times the wall clock."""
 
@@ -55,8 +67,10 @@ class LiveRunner:
                     tuner.apply_pending()
                     time.sleep(PAUSED_POLL_S)
                     continue
-                loop.clock = WallClockPacer(self.speed)
+                clock = CountingPacer(self.speed)
+                loop.clock = clock
                 loop.run()  # until the tuner's door asks it to stop
+                tuner.close_timing(clock)
         except BaseException as exc:  # noqa: BLE001  (reported to the page and the command line)
             self.error = exc
             tuner.shutdown = True

@@ -27,7 +27,6 @@ from jointctl.scenario.session import Session, object_spawner
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.objects import ObjectSpec, object_from_config
 from jointctl.commands.sources import CommandSource, command_source_from_config
-from jointctl.visuals.framing import fitted_view
 from jointctl.visuals.video import robot_camera
 from jointctl.tuning.gains import GainGroup, gain_groups, gains_yaml
 from jointctl.tuning.live_buffer import LiveBuffer
@@ -36,7 +35,10 @@ from jointctl.tuning.requests import Control, RequestError, SelectJoint, SetGain
 from jointctl.tuning.scene_view import SceneTap
 
 DEFAULT_WINDOW_S = 60.0  # loop time kept for plots and measurements [s]
-PAGE_VIEW_ASPECT = 4 / 3  # the 3D view the robot's camera is first fitted for (width / height)
+#: Late cycles (finished after their deadline) count as too many above this share of the cycles, over
+#: the whole run or over the last LATE_RECENT_S of wall-clock time (the page highlights them then).
+LATE_SHARE_LIMIT = 0.01
+LATE_RECENT_S = 5.0
 
 
 @dataclasses.dataclass
@@ -82,6 +84,10 @@ class Tuner:
         self._pending: deque[Callable[[float], None]] = deque()
         self._feeds: dict[str, _Feed] = {}
         self.runs: dict[str, SourceRun] = {}
+        self.scenario_sources: set[str] = set()  # controllers fed by the scenario's own source now
+        self._measured: dict[tuple, dict[str, Any]] = {}  # final measurements, by (epoch, controller, start)
+        #: (late cycles, cycles) of the runner's earlier pacing clocks, and the last of them.
+        self._timing_closed: tuple[int, int, Any] = (0, 0, None)
         self.last_commanded: str | None = None
         self._spawn_objects = self._objects_spawner()  # replaced on reset: they come again
         self.weight_dropped = False
@@ -95,12 +101,11 @@ class Tuner:
         self.scene: SceneTap | None = None
         if session.world is not None:
             camera = robot_camera(scenario.robot.extras, source=str(scenario.robot.folder / "robot.yaml"))
-            camera = fitted_view(session.world.model, session.world.data, camera, aspect=PAGE_VIEW_ASPECT)
             self.scene = SceneTap(session.world, camera=dataclasses.asdict(camera))
             self.loop.add_observer(self.scene)
         for name, config in scenario.commands.items():
             source = command_source_from_config(config, field=f"commands.{name}", source=scenario.source)
-            self._set_source(SetSource(name, source, dict(config)))
+            self._set_source(SetSource(name, source, dict(config)), origin="scenario")
         self.apply_pending()
 
     # -- what the page is told when it connects ------------------------------------------------
@@ -130,7 +135,30 @@ class Tuner:
             "can_drop": self.drop_object is not None,
             "gravity_z_m_s2": self._gravity_z(),
             "controller_file": str(self.scenario.controller_file),
+            "sources": self._sources(),
+            "late_share_limit": LATE_SHARE_LIMIT,
+            "late_recent_s": LATE_RECENT_S,
         }
+
+    def _sources(self) -> dict[str, dict[str, Any]]:
+        """The source feeding each commanded controller: its description and ``origin`` ("scenario":
+        the scenario's own commands, "page": applied from the page)."""
+        return {name: {**run.description, "origin": "scenario" if name in self.scenario_sources else "page"}
+                for name, run in self.runs.items()}
+
+    def timing(self) -> tuple[int, int]:
+        """(late cycles, paced cycles) since the page started: a cycle is late when it finished after
+        its deadline on the wall clock (the pacer then does not wait). Simulated loops count none."""
+        late, cycles, closed = self._timing_closed
+        clock = self.loop.clock
+        if clock is closed:  # between two runs
+            return late, cycles
+        return late + getattr(clock, "overruns", 0), cycles + getattr(clock, "cycles", 0)
+
+    def close_timing(self, clock) -> None:
+        """Add a pacing clock the loop no longer runs on to :meth:`timing` (the runner, after each run)."""
+        late, cycles, _ = self._timing_closed
+        self._timing_closed = (late + clock.overruns, cycles + getattr(clock, "cycles", 0), clock)
 
     def _reference_now(self, controller) -> float:
         given = controller.reference_input
@@ -140,7 +168,9 @@ class Tuner:
         status = {"time_s": self.loop.time_s, "paused": self.paused, "epoch": self.epoch,
                   "gravity_z_m_s2": self._gravity_z(), "weight_dropped": self.weight_dropped,
                   "sources": {name: run.description for name, run in self.runs.items()},
-                  "overruns": getattr(self.loop.clock, "overruns", 0)}
+                  "source_origins": {name: s["origin"] for name, s in self._sources().items()}}
+        status["late_cycles"], status["cycles"] = self.timing()
+        status["overruns"] = status["late_cycles"]  # the earlier name
         failures = self.manager.failures
         if failures:  # a controller failed: the page says which and what was done
             status["error"] = f"controller {failures[-1].controller!r} {failures[-1].error().message}"
@@ -148,10 +178,18 @@ class Tuner:
 
     def measurement(self) -> dict[str, Any]:
         """Measurements of the most recently applied source."""
-        run = self.runs.get(self.last_commanded) if self.last_commanded else None
+        name = self.last_commanded
+        run = self.runs.get(name) if name else None
+        key = (self.epoch, name, run.started_s if run else None)
+        if key in self._measured:  # final: the record may since have left the buffer
+            return dict(self._measured[key])
         result = measure(self.buffer, run, self.loop.time_s, self.period_s)
-        result["controller"] = self.last_commanded
+        result["controller"] = name
         result["epoch"] = self.epoch
+        if run is not None:
+            result["source"] = self._sources().get(name)
+        if result.get("complete") and result.get("values"):
+            self._measured = {key: dict(result)}
         return result
 
     def joint_index(self, joint: Any) -> int:
@@ -189,7 +227,7 @@ class Tuner:
             return self._control(request.action)
         raise RequestError("not a request", field="type", value=type(request).__name__)
 
-    def _set_source(self, request: SetSource) -> None:
+    def _set_source(self, request: SetSource, origin: str = "page") -> None:
         controller = self.commandable.get(request.controller)
         if controller is None:
             raise RequestError(f"no controller takes commands by that name (commandable: "
@@ -204,6 +242,10 @@ class Tuner:
                 request.source.reset()
                 self._feeds[name] = _Feed(controller, request.source, t)
             self.runs[name] = SourceRun(controller.joint, controller.controlled, request.description, t)
+            if origin == "scenario":
+                self.scenario_sources.add(name)
+            else:
+                self.scenario_sources.discard(name)
             self.last_commanded = name
 
         self._pending.append(apply)

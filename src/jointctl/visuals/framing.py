@@ -113,17 +113,5 @@ def framed_views(frames, camera: CameraView, width: int, height: int) -> list[Ca
     return views
 
 
-def fitted_view(model: mujoco.MjModel, data: mujoco.MjData, camera: CameraView, aspect: float) -> CameraView:
-    """``camera`` fitted to what ``data`` shows now (one picture; see :func:`framed_views`)."""
-    if not camera.fitted:
-        return camera
-    mujoco.mj_kinematics(model, data)
-    found = drawn_bounds(model, data) or (np.zeros(3), np.zeros(3))
-    view = fit_view(*found, azimuth_deg=camera.azimuth_deg, elevation_deg=camera.elevation_deg,
-                    fovy_deg=float(model.vis.global_.fovy), aspect=aspect)
-    return CameraView(camera.lookat or view.lookat, camera.distance_m or view.distance_m,
-                      camera.azimuth_deg, camera.elevation_deg)
-
-
-__all__ = ["FILL", "GLIDE_S", "HOLD_S", "camera_axes", "fit_view", "fitted_view", "frame_bounds", "framed_views",
+__all__ = ["FILL", "GLIDE_S", "HOLD_S", "camera_axes", "fit_view", "frame_bounds", "framed_views",
            "smoothed_bounds"]

@@ -11,7 +11,7 @@
   const KINDS = ["identify", "bode", "autotune"];
   const state = { running: null, results: {}, tuned: null, previous: null, controller: null };
   page.analysis = state;  // read by the browser tests
-  let chart = null;
+  let charts = [];  // the Bode panel's gain and phase
 
   window.addEventListener("jointctl:hello", (event) => {
     const select = $("analysis-controller");
@@ -90,23 +90,76 @@
     table(rows);
   }
 
+  // The Bode panel: gain and phase against a log frequency axis over the sweep's band (the reply's
+  // curves.band_hz: the swept frequencies, widened to show the margins' crossings when near). Points:
+  // measured; solid: the loop model's closed loop; dashed: its open loop, with the gain margin (at the
+  // open loop's -180° crossing) and the phase margin (at its 0 dB crossing) drawn as bars.
+  function hz(value) { return value === null || value === undefined || !Number.isFinite(value) ? null : value; }
+
   function showBode(r) {
+    const m = r.model || {};
+    const margin = (value, unit, at) => (value === null || value === undefined ? "∞ (no crossing)" : fmt(value, 3) + " " + unit) +
+      (hz(at) !== null ? " at " + fmt(at, 3) + " Hz" : "");
     table([["bandwidth (-3 dB)", fmt(r.bandwidth_hz) + " Hz"],
            ["resonance", fmt(r.resonance_peak_db, 3) + " dB at " + fmt(r.resonance_hz) + " Hz"],
            ["phase -90° at", fmt(r.phase_minus_90_hz) + " Hz"],
-           ["model phase margin", fmt(r.model.phase_margin_deg, 3) + "°"],
-           ["model gain margin", fmt(r.model.gain_margin_db, 3) + " dB"]]);
+           ["gain margin", margin(m.gain_margin_db, "dB", m.phase_crossover_hz)],
+           ["phase margin", margin(m.phase_margin_deg, "°", m.gain_crossover_hz)],
+           ["swept", fmt(r.frequencies_hz[0], 3) + " to " + fmt(r.frequencies_hz[r.frequencies_hz.length - 1], 3) + " Hz, " +
+            r.frequencies_hz.length + " frequencies"]]);
     const box = $("plot-bode");
     box.hidden = false;
-    if (chart) chart.destroy();
-    const options = {
-      width: Math.max(200, box.clientWidth || 400), height: 180, title: "closed-loop gain (dB)",
-      scales: { x: { time: false, distr: 3 } },
-      axes: [{ label: "Hz" }, {}],
-      series: [{}, { label: "measured", stroke: "#1565c0", points: { show: true } },
-               { label: "model", stroke: "#ef6c00" }],
+    for (const c of charts) c.destroy();
+    const curves = r.curves;
+    const band = curves ? curves.band_hz : [r.frequencies_hz[0], r.frequencies_hz[r.frequencies_hz.length - 1]];
+    // One x array for points and curves (uPlot draws aligned columns): the union, gaps spanned.
+    const measured = [r.frequencies_hz, r.gain_db, r.phase_deg];
+    const modelled = curves ? [curves.frequencies_hz, curves.closed_gain_db, curves.closed_phase_deg, curves.loop_gain_db,
+                               curves.loop_phase_deg] : [r.frequencies_hz, m.gain_db, m.phase_deg, [], []];
+    const joined = uPlot.join([measured, modelled]);
+    const [f, gain, phase, closedGain, closedPhase, loopGain, loopPhase] = joined;
+    const width = Math.max(200, box.clientWidth || 400);
+    const gc = hz(m.gain_crossover_hz), pc = hz(m.phase_crossover_hz);
+    const marks = (kind) => (u) => {
+      const ctx = u.ctx, x = (v) => u.valToPos(v, "x", true), y = (v) => u.valToPos(v, "y", true);
+      const top = u.bbox.top, bottom = u.bbox.top + u.bbox.height, left = u.bbox.left, right = u.bbox.left + u.bbox.width;
+      ctx.save();
+      ctx.lineWidth = 1;
+      ctx.setLineDash([4, 3]);
+      ctx.strokeStyle = "#888";
+      const level = kind === "gain" ? 0 : -180;  // the open loop's reference line
+      if (u.scales.y.min <= level && level <= u.scales.y.max) { ctx.beginPath(); ctx.moveTo(left, y(level)); ctx.lineTo(right, y(level)); ctx.stroke(); }
+      ctx.setLineDash([]);
+      ctx.lineWidth = 2.5;
+      ctx.font = "11px system-ui, sans-serif";
+      const bar = (at, from, to, color, text) => {
+        if (at === null || at < band[0] || at > band[1] || from === null || to === null) return;
+        ctx.strokeStyle = ctx.fillStyle = color;
+        ctx.beginPath(); ctx.moveTo(x(at), Math.min(bottom, Math.max(top, y(from))));
+        ctx.lineTo(x(at), Math.min(bottom, Math.max(top, y(to)))); ctx.stroke();
+        ctx.fillText(text, Math.min(x(at) + 4, right - 70), Math.min(bottom - 4, Math.max(top + 12, (y(from) + y(to)) / 2)));
+      };
+      if (kind === "gain" && Number.isFinite(m.gain_margin_db)) bar(pc, -m.gain_margin_db, 0, "#2e7d32", "GM " + fmt(m.gain_margin_db, 3) + " dB");
+      if (kind === "phase" && Number.isFinite(m.phase_margin_deg)) bar(gc, -180, m.phase_margin_deg - 180, "#c62828", "PM " + fmt(m.phase_margin_deg, 3) + "°");
+      ctx.restore();
     };
-    chart = new uPlot(options, [r.frequencies_hz, r.gain_db, r.model.gain_db], box);
+    const spec = (kind, title, unit, series) => ({
+      width: width, height: 150, title: title,
+      scales: { x: { time: false, distr: 3, range: () => band.slice() } },
+      axes: [{ label: kind === "phase" ? "frequency (Hz)" : "", size: kind === "phase" ? 40 : 26 }, { label: unit, size: 50 }],
+      legend: { show: kind === "gain" },
+      cursor: { sync: { key: "jointctl-bode" } },
+      series: [{ label: "Hz" }].concat(series),
+      hooks: { draw: [marks(kind)] },
+    });
+    const pointsStyle = (label) => ({ label: label, stroke: "#1565c0", paths: () => null, points: { show: true, size: 6, fill: "#1565c0" } });
+    const closed = { label: "model", stroke: "#ef6c00", width: 1.5, spanGaps: true };
+    const open = { label: "open loop", stroke: "#6d4c41", width: 1.2, dash: [6, 4], spanGaps: true };
+    charts = [
+      new uPlot(spec("gain", "gain (dB)", "dB", [pointsStyle("measured"), closed, open]), [f, gain, closedGain, loopGain], $("plot-bode-gain")),
+      new uPlot(spec("phase", "phase (°)", "deg", [pointsStyle("measured"), closed, open]), [f, phase, closedPhase, loopPhase], $("plot-bode-phase")),
+    ];
+    page.bodeCharts = charts;
     page.bodeDrawn = (page.bodeDrawn || 0) + 1;
   }
 
