@@ -7,7 +7,8 @@
 // motion is seen against a fixed view), until the wheel zooms by hand; Fit frames them again. Drag to orbit. window.jointctl3d is read by the browser tests.
 import * as THREE from "./vendor/three.module.js";
 
-// ?view3d=0 leaves the view out (for comparing the page's cost with and without it).
+// ?view3d=0 leaves the view out (to compare the page's cost with and without it; the tests of the plots and
+// panels leave it out, as its software WebGL competes with the served robot's loop for the CPU).
 const box = document.getElementById("view3d");
 if (new URLSearchParams(location.search).get("view3d") === "0") {
   box.closest(".view").hidden = true;
