@@ -256,8 +256,9 @@ def test_identify_bode_and_autotune_panels_and_applying_and_reverting_the_gains(
     assert browser.find_element("id", "plot-bode").is_displayed()
     # Gain and phase, on a log axis over the sweep (0.5 to 20 Hz, widened to the -180° crossing at 22.4 Hz),
     # with both margins and their frequencies in the table.
-    bode = browser.execute_script("return window.jointctlPage.bodeCharts.map((c) => [c.scales.x.distr, c.scales.x.min, "
-                                  "c.scales.x.max, c.series.map((s) => s.label), c.data[1].filter((v) => v != null).length]);")
+    bode = browser.execute_script(
+        "return window.jointctlPage.bodeCharts.map((c) => [c.scales.x.distr, c.scales.x.min, c.scales.x.max, "
+        "c.series.map((s) => s.label), c.data[1].filter((v) => v != null).length]);")
     assert [b[3][1:] for b in bode] == [["measured", "model", "open loop"]] * 2
     for distr, low, high, _, measured in bode:
         assert distr == 3 and low == pytest.approx(0.5) and 22.4 < high < 30 and measured == 16

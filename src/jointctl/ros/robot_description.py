@@ -20,8 +20,9 @@
 - ``serve --rviz`` (:class:`Viewers`): starts ``robot_state_publisher`` (with the remap) and
   ``rviz -d`` with the shipped configuration (:data:`RVIZ_CONFIG`, fixed frame set to the URDF's root
   link, window sized to the screen and view fitted to the robot where the node starts:
-  :mod:`jointctl.ros.rviz_layout`) as child processes, stopped with SIGINT when the node stops. Whatever cannot start (not
-  installed, no display) is said in one line on stderr and the node serves on.
+  :mod:`jointctl.ros.rviz_layout`) as child processes, stopped with SIGINT when the node stops.
+  Whatever cannot start (not installed, no display) is said in one line on stderr and the node
+  serves on.
 """
 
 from __future__ import annotations

@@ -201,5 +201,5 @@ def run_analysis(tuner, request: Analyse) -> dict[str, Any]:
             "result": result}
 
 
-__all__ = ["BODE_BAND_HZ", "BODE_POINTS", "CURVE_POINTS", "LiveSession", "bode_frequencies", "live_copy", "model_curves",
-           "run_analysis", "run_live"]
+__all__ = ["BODE_BAND_HZ", "BODE_POINTS", "CURVE_POINTS", "LiveSession", "bode_frequencies", "live_copy",
+           "model_curves", "run_analysis", "run_live"]
