@@ -186,6 +186,45 @@ RECORD_STATUS_TIMES = ("window.statusTimes = [];"
                        "window.addEventListener('jointctl:status', (e) => window.statusTimes.push(e.detail.time_s));")
 
 
+def apply_from_another_page(server, controller: str, source: dict) -> dict:
+    """Apply ``source`` as a second page connected to the same robot would; the server's reply."""
+    import json
+
+    from websockets.sync.client import connect
+
+    with connect(server.ws_url) as ws:
+        ws.recv()  # hello
+        ws.send(json.dumps({"type": "source", "controller": controller, "source": source}))
+        while True:
+            reply = json.loads(ws.recv(timeout=30))
+            if reply.get("type") in ("ok", "error"):
+                return reply
+
+
+def test_a_source_changed_elsewhere_does_not_undo_what_the_user_is_typing(browser, tune):
+    server = tune("one_dof", "--controllers", "position")
+    open_page(browser, server)
+    running = lambda: (page_state(browser, "status") or {}).get("sources", {}).get(CONTROLLER)  # noqa: E731
+    # Not editing: a source applied elsewhere shows in the form.
+    assert apply_from_another_page(server, CONTROLLER, {"type": "constant", "value": -0.3})["type"] == "ok"
+    wait_for(lambda: running() == {"type": "constant", "value": -0.3}, what="the other page's source")
+    wait_for(lambda: browser.find_element("id", "constant-value").get_attribute("value") == "-0.3", what="the form")
+    # Editing: the user picks an expression, types it with a mistake and applies it: refused. Another source
+    # arrives meanwhile and is shown as running, but the form keeps the user's choice and text to correct.
+    choose(browser, "source-type", "expression")
+    type_into(browser, "expression-text", "-0.4 + 0.01*sin(t")
+    _, error = click_and_wait(browser, "source-apply")
+    assert error is not None and "source.expression" in error["message"]
+    assert apply_from_another_page(server, CONTROLLER, {"type": "constant", "value": -0.35})["type"] == "ok"
+    wait_for(lambda: running() == {"type": "constant", "value": -0.35}, what="the second source from elsewhere")
+    assert browser.find_element("id", "source-type").get_attribute("value") == "expression"
+    assert browser.find_element("id", "expression-text").get_attribute("value") == "-0.4 + 0.01*sin(t"
+    type_into(browser, "expression-text", "-0.4 + 0.01*sin(t)")
+    click_and_wait(browser, "source-apply")
+    wait_for(lambda: (running() or {}).get("type") == "expression", what="the user's expression running")
+    assert running()["expression"] == "-0.4 + 0.01*sin(t)"
+
+
 def test_controls_pause_resume_reset_gravity_and_drop_weight(browser, tune):
     server = tune("one_dof", "--controllers", "position")
     open_page(browser, server)

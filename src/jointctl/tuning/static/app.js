@@ -125,6 +125,7 @@
 
   function reply(m) {
     page.replies.push(m);
+    if (m.request === "source") formEdited = false;  // accepted: the form may follow the running source again
     $("error").hidden = true;
     const item = document.createElement("li");
     item.textContent = "ok: " + m.request + (m.value !== undefined ? " = " + m.value : "");
@@ -204,8 +205,10 @@
 
   // -- the command source running ---------------------------------------------------------------------
   // The form shows the source that feeds the chosen controller (the scenario's own, or one applied from
-  // a page) whenever that source changes, and when another controller is chosen.
-  let sourcesNow = {}, originsNow = {};
+  // a page) whenever that source changes, and when another controller is chosen; never while the user
+  // is editing it (changed a field since their last source was accepted; a refused one stays to be
+  // corrected): a status arriving then would undo their choice.
+  let sourcesNow = {}, originsNow = {}, formEdited = false;
   const formShows = {};  // controller -> JSON of the source the form was last filled from
   function showSources(sources, origins) {
     sourcesNow = sources;
@@ -217,7 +220,7 @@
     now.classList.toggle("scenario", Object.values(origins).includes("scenario"));
     const controller = $("source-controller").value;
     const running = sources[controller];
-    if (running && formShows[controller] !== JSON.stringify(running)) fillSourceForm(controller);
+    if (running && !formEdited && formShows[controller] !== JSON.stringify(running)) fillSourceForm(controller);
   }
 
   function fillSourceForm(controller) {
@@ -631,7 +634,11 @@
   }
 
   $("source-type").addEventListener("change", showSourceParams);
-  $("source-controller").addEventListener("change", () => fillSourceForm($("source-controller").value));
+  const sourceForm = $("source-apply").closest("fieldset");
+  for (const kind of ["input", "change"]) {
+    sourceForm.addEventListener(kind, (event) => { if (event.target.id !== "source-controller") formEdited = true; });
+  }
+  $("source-controller").addEventListener("change", () => { formEdited = false; fillSourceForm($("source-controller").value); });
   $("source-apply").addEventListener("click", () => send(sourceRequest()));
   for (const action of ["pause", "resume", "reset"]) $(action).addEventListener("click", () => send({ type: action }));
   $("drop").addEventListener("click", () => send({ type: "drop_weight" }));
