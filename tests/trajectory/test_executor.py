@@ -793,3 +793,22 @@ def test_plan_path_uses_the_executors_timing_parameters(write_scenario):
     planned = executor.plan_path([[-0.1]])
     assert planned == time_path(("joint1",), [-0.5], [[-0.1]], [executor.specs[0].max_velocity],
                                 velocity_fraction=0.25, max_acceleration=3.0, max_jerk=40.0)
+
+
+def test_every_goal_is_kept_in_the_history_refusals_too(write_scenario):
+    """What a run's record lists: a goal that ran, one refused by submit, one refused on arrival by the queued
+    servers' shape check, in the order they came, each with its end and the time it ended."""
+    session = build(write_scenario)
+    executor = executor_of(session)
+    session.loop.run(duration_s=0.2)
+    ran = executor.submit(goal((0.5, -0.3)), now_s=session.loop.time_s)
+    session.loop.run(duration_s=0.7)
+    with pytest.raises(InvalidTrajectory):
+        executor.submit(goal((0.5, 5.0)), now_s=session.loop.time_s)
+    with pytest.raises(InvalidTrajectory, match="upper limit"):
+        executor.check_goal_shape(goal((0.5, 7.0)))
+    history = list(executor.goals.history)
+    assert [h.id for h in history] == [1, 2, 3] and history[0] is ran
+    assert [h.status for h in history] == [GoalStatus.SUCCEEDED, GoalStatus.REJECTED, GoalStatus.REJECTED]
+    assert "5.0" in history[1].result.error_string and "7.0" in history[2].result.error_string
+    assert history[2].result.time_s == pytest.approx(0.9, abs=2e-3)  # the last cycle's loop time (0.2 + 0.7 s run)

@@ -258,8 +258,16 @@ class TrajectoryExecutor(Controller):
 
         For servers that queue goals (the chapter's SimpleActionServers): a goal that can never run
         is refused on arrival; where it starts is checked by :meth:`submit` when its turn comes.
-        Raises :class:`InvalidTrajectory`.
+        Raises :class:`InvalidTrajectory`; the refused goal is kept in the goals' history as
+        REJECTED, as :meth:`submit` keeps its refusals (the run's record lists both).
         """
+        try:
+            self._check_shape(trajectory)
+        except InvalidTrajectory as exc:
+            self.goals.reject(self.goals.new(trajectory), exc, self._last_time_s)
+            raise
+
+    def _check_shape(self, trajectory: JointTrajectory) -> None:
         self._check_running_and_points(trajectory)
         # Pretend the goal starts at its own first point: the start check and the first segment's
         # speed are then about the goal alone.
