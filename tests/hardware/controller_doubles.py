@@ -52,12 +52,18 @@ class ControllerDouble:
     starting at ``positions``."""
 
     def __init__(self, kind: str, positions, max_velocities, *, capacity: int = 8,
-                 period_s: float = 0.01, failure_reply_delay_s: float = 0.0) -> None:
+                 period_s: float = 0.01, failure_reply_delay_s: float = 0.0,
+                 stale_status_after_failure: bool = False) -> None:
         assert kind in KINDS
         self.kind, self.capacity, self.period_s = kind, capacity, period_s
         #: How long a FAILURE reply waits after its STATUS error is reported [s] (a controller that says
         #: the error on the state port before it answers the request).
         self.failure_reply_delay_s = failure_reply_delay_s
+        #: A STATUS without the error arrives after the FAILURE reply: it was on its way on the state port
+        #: when the point was refused (the two ports race); the error follows in the next STATUS.
+        self.stale_status_after_failure = stale_status_after_failure
+        self._masked = False     # the error is not in the STATUS yet (the stale ones)
+        self._reply_out = False  # ... and the FAILURE reply has been sent: one more stale STATUS, then the error
         self.max_velocities = list(max_velocities)
         self.positions = list(map(float, positions))
         self.points: list[tuple[float, JointTrajPt | JointTrajPtFull]] = []
@@ -139,6 +145,7 @@ class ControllerDouble:
                 return ReplyCode.FAILURE
             if (self.kind == "full") != isinstance(message, JointTrajPtFull):
                 self.error_code, self._accepting = ERROR_NOT_FULL, False
+                self._masked = self.stale_status_after_failure
                 return ReplyCode.FAILURE
             target = list(message.positions[:n])
             length = self._length(target, message)
@@ -175,7 +182,9 @@ class ControllerDouble:
                         self._advance()
                         positions = tuple(self.positions)
                         moving = bool(self._queue) or self._segment is not None
-                        error = self.error_code
+                        error = 0 if self._masked else self.error_code
+                        if self._masked and self._reply_out:
+                            self._masked = self._reply_out = False
                     status = RobotStatus(1, 0, error, 1 if error else 0, int(moving), 2, 1)
                     conn.sendall(encode(JointPosition(0, positions)) + encode(status))
                     self.closing.wait(self.period_s)
@@ -198,6 +207,8 @@ class ControllerDouble:
                         if code == ReplyCode.FAILURE and self.failure_reply_delay_s:
                             self.closing.wait(self.failure_reply_delay_s)
                         conn.sendall(encode_reply(packet, code))
+                        with self.lock:
+                            self._reply_out = self._masked
             except OSError:
                 continue
             with self.lock:

@@ -44,10 +44,12 @@ def smooth_goal(delta: float, duration_s: float, points: int = 3) -> JointTrajec
 
 
 @contextlib.contextmanager
-def arm_against(kind: str, *, failure_reply_delay_s: float = 0.0, **options):
+def arm_against(kind: str, *, failure_reply_delay_s: float = 0.0, stale_status_after_failure: bool = False,
+                **options):
     """(double, session, executor): the arm's industrial session on IndustrialHardware connected to a
     controller double of ``kind``; ``options`` for the hardware (``message``...)."""
-    double = ControllerDouble(kind, PRE_POSE, VMAX, failure_reply_delay_s=failure_reply_delay_s)
+    double = ControllerDouble(kind, PRE_POSE, VMAX, failure_reply_delay_s=failure_reply_delay_s,
+                              stale_status_after_failure=stale_status_after_failure)
     hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
                                   state_port=double.state_port, max_velocities=VMAX, **options)
     try:
@@ -133,13 +135,15 @@ def test_a_cancel_stops_the_robot_short_of_the_goal(arm) -> None:
     assert 0.0 < travelled < 0.3 - 0.05  # it moved, and stopped well short of the goal's 0.3 rad
 
 
-@pytest.mark.parametrize("failure_reply_delay_s", [0.0, 0.05])
-def test_a_failure_reply_aborts_the_goal_at_once_naming_the_point_and_the_error_code(failure_reply_delay_s) -> None:
+@pytest.mark.parametrize("failure_reply_delay_s, stale_status", [(0.0, False), (0.05, False), (0.0, True)])
+def test_a_failure_reply_aborts_the_goal_at_once_naming_the_point_and_the_error_code(failure_reply_delay_s,
+                                                                                     stale_status) -> None:
     # A controller that takes only JOINT_TRAJ_PT_FULL, sent JOINT_TRAJ_PT: it answers FAILURE (and
     # reports STATUS error_code 22); the goal ends long before its 3 s. With the reply 50 ms late (five of
-    # its status periods: the error STATUS comes first), the fault still names the point.
-    with arm_against("full", message="pt", failure_reply_delay_s=failure_reply_delay_s) as (double, session,
-                                                                                           executor):
+    # its status periods: the error STATUS comes first), the fault still names the point. With a STATUS
+    # without the error read after the reply (sent before the refusal), the code still comes from the next.
+    with arm_against("full", message="pt", failure_reply_delay_s=failure_reply_delay_s,
+                     stale_status_after_failure=stale_status) as (double, session, executor):
         handle = executor.submit(smooth_goal(0.1, 3.0), now_s=session.loop.time_s)
         run_until_done(session, handle, 3.0)
         assert handle.status is GoalStatus.ABORTED

@@ -440,15 +440,16 @@ class IndustrialHardware(HardwareInterface):
             self._stopping = False
             self._last_sent = list(self.position)
         refused_point = self._refused_point
-        if refused_point is not None and (self._status_at > refused_point[1]
-                                          or time.monotonic() > refused_point[1] + ERROR_CODE_WAIT_S):
+        # The error code is a STATUS in error read after the FAILURE reply (a STATUS read after it but
+        # sent before the refusal, still without the error, does not end the wait: the two ports race).
+        coded = refused_point is not None and refused and self._status_at > refused_point[1]
+        if refused_point is not None and (coded or time.monotonic() > refused_point[1] + ERROR_CODE_WAIT_S):
             # Reported for one read, as a refusal STATUS is: the goal aborts; the next motion starts
             # a new trajectory (sequence 0), which clears the controller's error.
             self._refused_point = None
             self._refusal_reported = True
             self._last_sent = None
-            code = (f"STATUS error_code {status.error_code}" if refused and self._status_at > refused_point[1]
-                    else "no error code reported")
+            code = f"STATUS error_code {status.error_code}" if coded else "no error code reported"
             self.fault = f"the controller refused point {refused_point[0]} of the trajectory (FAILURE; {code})"
         elif self._motion_lost is not None:
             self.fault = self._motion_lost
