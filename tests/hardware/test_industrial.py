@@ -4,6 +4,7 @@ real robot in MuJoCo behind the same protocol, is tested with it in tests/indust
 
 from __future__ import annotations
 
+import functools
 import math
 import socket
 import threading
@@ -26,16 +27,13 @@ from jointctl.wire.simple_message import (
     encode,
     encode_reply,
 )
+from tests.waiting import wait_until
 
 JOINTS = ("a", "b")
 TIMEOUT_S = 10.0
 
 
-def wait_for(condition, what: str) -> None:
-    deadline = time.monotonic() + TIMEOUT_S
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.005)
+wait_for = functools.partial(wait_until, timeout_s=TIMEOUT_S, every_s=0.005)
 
 
 class Peer:

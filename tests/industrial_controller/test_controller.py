@@ -4,6 +4,7 @@ the sockets never stop it."""
 
 from __future__ import annotations
 
+import functools
 import socket
 import struct
 import threading
@@ -31,16 +32,13 @@ from jointctl.wire.simple_message import (
     encode,
 )
 from jointctl.scenario.spec import scenario_for_robot
+from tests.waiting import wait_until
 
 TIMEOUT_S = 20.0
 START_M = -0.5  # robot.yaml's serve default for one_dof
 
 
-def wait_for(condition, what: str, timeout_s: float = TIMEOUT_S) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.005)
+wait_for = functools.partial(wait_until, timeout_s=TIMEOUT_S, every_s=0.005)
 
 
 @pytest.fixture

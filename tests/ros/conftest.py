@@ -29,6 +29,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.waiting import wait_until  # noqa: F401  (the ROS tests import it from here)
+
 ROOT = Path(__file__).resolve().parents[2]
 ROS_BUILD = ROOT / "build" / "ros"
 PROBE = Path(__file__).with_name("probe_node.py")
@@ -66,18 +68,7 @@ def free_port() -> int:
             return port
 
 
-def wait_until(predicate: Callable[[], object], what: str, timeout_s: float = 30.0, every_s: float = 0.02):
-    """Poll ``predicate`` until it returns something true (returned); fail saying ``what`` was
-    awaited when ``timeout_s`` passes first. The deadline is generous: it bounds a broken run, it
-    is not a measurement."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = predicate()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"waited {timeout_s:g} s for {what}; last seen: {value!r}")
-        time.sleep(every_s)
+
 
 
 def ros_environment(folder: Path, port: int) -> dict:

@@ -5,6 +5,7 @@ controller lost and back, and the two on different hosts (network namespaces).""
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 import subprocess
@@ -16,6 +17,7 @@ import pytest
 
 from tests.ros.conftest import joint_positions, run, wait_for_topic
 from tests.ros.test_across_hosts import ADDR_A, ADDR_B, _env, _in, hosts  # noqa: F401  (a fixture)
+from tests.waiting import wait_until as poll_until
 
 CLIENT = str(Path(__file__).with_name("action_client.py"))
 SERVER = "/joint_trajectory_action"
@@ -77,11 +79,7 @@ def positions(env, topic: str = "/joint_states") -> list[float]:
     return [float(x) for x in re.search(r"position: \[([^\]]*)\]", text).group(1).split(",")]
 
 
-def wait_until(condition, what: str, timeout_s: float = 60.0) -> None:
-    """Poll ``condition`` (each poll asks the ROS graph, itself some 0.1-1 s) until true."""
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+wait_until = functools.partial(poll_until, timeout_s=60.0, every_s=0.0)  # each poll asks the ROS graph (0.1-1 s)
 
 
 def at_rest(env) -> bool:

@@ -7,17 +7,18 @@ and an unreachable controller."""
 
 from __future__ import annotations
 
+import functools
 import json
 import socket
 import subprocess
 import sys
-import time
 
 import pytest
 
 from jointctl.wire.simple_message import STOP_TRAJECTORY
 from tests.hardware.test_industrial import Peer
 from tests.ros.conftest import joint_positions, run, wait_for_topic
+from tests.waiting import wait_until
 
 SERVER = "/joint_trajectory_action"
 START_M = -0.5
@@ -68,11 +69,7 @@ else:
 '''.replace("SERVER", repr(SERVER))
 
 
-def wait_for(condition, what: str, timeout_s: float = TIMEOUT_S) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.01)
+wait_for = functools.partial(wait_until, timeout_s=TIMEOUT_S, every_s=0.01)
 
 
 @pytest.fixture

@@ -8,12 +8,12 @@ across-hosts test skips, unless JOINTCTL_REQUIRE_ROS is set (as for the ROS two-
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import psutil
@@ -23,6 +23,7 @@ from jointctl.cli import main
 from jointctl.sweep import Engine, run_sweep
 from jointctl.sweep import engine as engine_module
 from tests.netns import two_hosts
+from tests.waiting import wait_until
 
 pytestmark = pytest.mark.wall_clock
 
@@ -53,12 +54,7 @@ def stop(processes) -> None:
             process.wait(5)
 
 
-def wait_for(predicate, what: str, timeout_s: float = 60.0):
-    deadline = time.monotonic() + timeout_s
-    while not (value := predicate()):
-        assert time.monotonic() < deadline, f"waited {timeout_s:g} s for {what}"
-        time.sleep(0.1)
-    return value
+wait_for = functools.partial(wait_until, timeout_s=60.0, every_s=0.1)
 
 
 def sweep(out: Path, **engine) -> bytes:

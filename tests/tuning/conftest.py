@@ -7,6 +7,7 @@ they fail instead.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import re
@@ -16,6 +17,8 @@ import time
 from pathlib import Path
 
 import pytest
+
+from tests.waiting import wait_until
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
@@ -115,15 +118,7 @@ def tune(tmp_path):
         process.stop()
 
 
-def wait_for(predicate, timeout_s: float = 10.0, every_s: float = 0.05, what: str = "condition"):
-    """Poll ``predicate`` until it returns something truthy; that value."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(every_s)
-    raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+wait_for = functools.partial(wait_until, timeout_s=10.0, every_s=0.05)
 
 
 def save_artifact(driver, name: str) -> Path:
