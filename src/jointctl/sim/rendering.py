@@ -35,6 +35,8 @@ MAX_SIZE = (4096, 4096)
 #: The headlight (RGB, 0..1): it lights the faces the camera sees, the world's sun the rest.
 HEADLIGHT_AMBIENT = (0.3, 0.3, 0.3)
 HEADLIGHT_DIFFUSE = (0.4, 0.4, 0.4)
+#: Pictures narrower than this [px] are stamped in MuJoCo's smaller font.
+SMALL_PICTURE_WIDTH = 480
 #: How far the sun stands back from the point looked at, in view distances.
 SUN_DISTANCE_IN_VIEWS = 1.5
 
@@ -126,7 +128,9 @@ class OffscreenRenderer:
             # URDF robots bring no lights: the camera's headlight lights the scene (drawing only).
             model.vis.headlight.ambient[:] = HEADLIGHT_AMBIENT
             model.vis.headlight.diffuse[:] = HEADLIGHT_DIFFUSE
-            context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+            font = mujoco.mjtFontScale.mjFONTSCALE_100 if self.width < SMALL_PICTURE_WIDTH else \
+                mujoco.mjtFontScale.mjFONTSCALE_150  # the stamp's letters: a smaller share of a small picture
+            context = mujoco.MjrContext(model, font)
             mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, context)
             found = (model, mujoco.MjData(model), context, mujoco.MjvScene(model, maxgeom=10_000))
             self._contexts[key] = found
