@@ -29,6 +29,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.processes import stop_process
 from tests.waiting import wait_until  # noqa: F401  (the ROS tests import it from here)
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -103,16 +104,6 @@ def _answers(api_uri: str, timeout_s: float = 2.0) -> bool:
         return False
 
 
-def _stop(process: subprocess.Popen, timeout_s: float = 10.0) -> None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(5)
-
-
 class Master:
     """``rosmaster --core`` on a port from :func:`free_port`. The port may be taken between the OS
     handing it out and the master binding it; rosmaster then prints "Unable to start XML-RPC
@@ -160,7 +151,7 @@ class Master:
         if kill and self.process.poll() is None:
             self.process.kill()
             self.process.wait(5)
-        _stop(self.process)
+        stop_process(self.process)
 
 
 #: Probe nodes by the URI of the master they are on (how the env-taking helpers find them).
@@ -239,7 +230,7 @@ class Probe:
             try:
                 self.process.wait(10)
             except subprocess.TimeoutExpired:
-                _stop(self.process)
+                stop_process(self.process)
 
 
 class Graph:
@@ -313,7 +304,7 @@ class Graph:
     def close(self) -> None:
         self.probe.close()
         for process in reversed(self.processes):
-            _stop(process)
+            stop_process(process)
         self.master.stop()
 
 
@@ -423,7 +414,7 @@ def serve(ros_env):
 
     yield start
     for process in processes:
-        _stop(process)
+        stop_process(process)
 
 
 def printed_until(process: subprocess.Popen, predicate: Callable[[str], object], what: str,

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from tests.netns import two_hosts
+from tests.processes import stop_process
 from tests.ros.conftest import ROS_BUILD
 
 CLIENT = str(Path(__file__).with_name("action_client.py"))
@@ -76,9 +77,4 @@ def test_a_goal_from_host_b_succeeds_on_host_a(hosts, tmp_path):
         assert done["feedback"] > 10  # feedback crossed the link too
     finally:
         for process in reversed(processes):
-            process.terminate()
-            try:
-                process.wait(10)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait(5)
+            stop_process(process)

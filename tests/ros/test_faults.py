@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.processes import stop_process
 from tests.ros.conftest import Master, Probe, printed_until, run, stop_and_read, wait_until
 
 JOINT_STATES = "/one_DOF_robot/joint_states"
@@ -182,16 +183,6 @@ def _serve(env):
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
-def _stop(process):
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(5)
-
-
 def test_a_restarted_master_ends_the_node_with_a_clear_message(own_master):
     """rospy never re-registers with a new master: the node says so and exits, instead of running
     on invisible to the graph."""
@@ -205,7 +196,7 @@ def test_a_restarted_master_ends_the_node_with_a_clear_message(own_master):
         assert node.returncode == 2
         assert "master" in output.lower() and f"{port}" in output
     finally:
-        _stop(node)
+        stop_process(node)
 
 
 def test_when_the_master_goes_away_serve_exits_with_a_clear_message(own_master):
@@ -221,7 +212,7 @@ def test_when_the_master_goes_away_serve_exits_with_a_clear_message(own_master):
         assert node.returncode not in (0, None)
         assert "master" in output.lower() and f"{port}" in output
     finally:
-        _stop(node)
+        stop_process(node)
 
 
 # -- (e) a controller that fails mid-goal ----------------------------------------------------
@@ -241,6 +232,6 @@ def test_a_controller_failing_mid_goal_aborts_the_goal_and_logs_an_error(ros_env
         q = at_rest(probe)
         assert q[-1] == pytest.approx(-1.0, abs=0.005)
     finally:
-        _stop(node)
+        stop_process(node)
     log = node.communicate(timeout=20)[0]
     assert "jointctl: controller joint1_position_controller failed at t =" in log, log[-2000:]

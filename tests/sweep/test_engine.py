@@ -23,6 +23,7 @@ from jointctl.cli import main
 from jointctl.sweep import Engine, run_sweep
 from jointctl.sweep import engine as engine_module
 from tests.netns import two_hosts
+from tests.processes import stop_process
 from tests.waiting import wait_until
 
 pytestmark = pytest.mark.wall_clock
@@ -45,13 +46,7 @@ def stop(processes) -> None:
     """Each process told to stop and awaited in turn, the last started first: the workers before their scheduler
     (a worker closing because its scheduler went away while a SIGTERM arrives can hang in its close)."""
     for process in reversed(processes):
-        if process.poll() is None:
-            process.terminate()
-        try:
-            process.wait(15)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(5)
+        stop_process(process, timeout_s=15.0)
 
 
 wait_for = functools.partial(wait_until, timeout_s=60.0, every_s=0.1)
