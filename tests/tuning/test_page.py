@@ -495,7 +495,8 @@ def test_the_page_at_1400x1000_plots_beside_3d_view_zoom_pause_scrub_csv_force_a
 
     wait_for(landed, timeout_s=20, what="the weight's impact on the sensor")
     assert seen_falling and all(seen_falling)
-    time.sleep(0.3)
+    drawn = page_state(browser, "draws")  # two more redraws: the impact's samples are on the axes
+    wait_for(lambda: page_state(browser, "draws") >= drawn + 2, what="the plots redrawn after the impact")
     # (one read: the data and the scales of the same redraw)
     effort, force, scales, shown = chart(browser, 2, "[c.data[1], c.data[2], [c.scales.y.min, c.scales.y.max, "
                                          "c.scales.force.min, c.scales.force.max], [c.scales.x.min, c.scales.x.max]]")
