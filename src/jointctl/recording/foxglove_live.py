@@ -27,7 +27,7 @@ from jointctl.errors import JointCtlError
 from jointctl.model.package_paths import PackageResolver
 from jointctl.recording.foxglove_messages import (
     ERROR, EVENTS, INFO, OBJECTS, ROBOT_DESCRIPTION, SCENE_RATE_HZ, TF, RecordFormat, RobotFrames,
-    decimation, description_message, log_message, object_entity, reference_kinds, scene_update)
+    decimation, description_message, log_message, object_entity, object_events, reference_kinds, scene_update)
 from jointctl.recording.mcap_record import open_channels
 
 #: The port ``--foxglove`` listens on when none is given (the tuning page has 8765, Foxglove's usual one).
@@ -144,11 +144,8 @@ class FoxgloveLive:
 
     def _on_rebuild(self) -> None:
         now = {o.name for o in self.sim.spawned}
-        time_s = self.loop.time_s
-        for name in sorted(now - self._spawned):
-            self._event(time_s, f"spawned {name}")
-        for name in sorted(self._spawned - now):
-            self._event(time_s, f"removed {name}")
+        for text in object_events(self._spawned, now):
+            self._event(self.loop.time_s, text)
         self._spawned = now
 
     def _event(self, time_s: float, text: str, level: int = INFO) -> None:

@@ -492,6 +492,11 @@ def log_message(text: str, ns: int, level: int = INFO) -> bytes:
                        "line": 0}).encode()
 
 
+def object_events(before: set[str], now: set[str]) -> list[str]:
+    """The event texts for the spawned objects that came (``now`` - ``before``) and went, by name."""
+    return [f"spawned {name}" for name in sorted(now - before)] + [f"removed {name}" for name in sorted(before - now)]
+
+
 def description_message(urdf: str) -> bytes:
     """The ``/robot_description`` message: the URDF text in ``data``."""
     return json.dumps({"data": urdf}).encode()
@@ -500,4 +505,4 @@ def description_message(urdf: str) -> bytes:
 __all__ = ["EVENTS", "JOINTS", "JOINT_STATES", "OBJECTS", "PER_CYCLE", "REFERENCES", "ROBOT_DESCRIPTION",
            "SCENE_RATE_HZ", "TF", "WORLD_FRAME", "WRENCHES", "ChannelSpec", "JointUnits", "RecordFormat",
            "RobotFrames", "decimation", "description_message", "joint_units", "log_message", "nanoseconds",
-           "object_entity", "quaternions", "reference_kinds", "scene_update", "stamp"]
+           "object_entity", "object_events", "quaternions", "reference_kinds", "scene_update", "stamp"]

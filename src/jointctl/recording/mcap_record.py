@@ -28,7 +28,8 @@ from foxglove.mcap import MCAPWriteOptions
 from jointctl import __version__
 from jointctl.recording.foxglove_messages import (
     ERROR, EVENTS, INFO, OBJECTS, WARNING, ROBOT_DESCRIPTION, SCENE_RATE_HZ, TF, RecordFormat, RobotFrames,
-    decimation, description_message, log_message, nanoseconds, object_entity, reference_kinds, scene_update)
+    decimation, description_message, log_message, nanoseconds, object_entity, object_events, reference_kinds,
+    scene_update)
 
 MCAP_FILE = "run.mcap"
 
@@ -122,11 +123,8 @@ class McapRecorder:
     # -- during the run -------------------------------------------------------------------------------
     def _on_rebuild(self, sim) -> None:
         now = {o.name for o in sim.spawned}
-        time_s = self._loop.time_s
-        for name in sorted(now - self._spawned):
-            self.add_event(time_s, f"spawned {name}")
-        for name in sorted(self._spawned - now):
-            self.add_event(time_s, f"removed {name}")
+        for text in object_events(self._spawned, now):
+            self.add_event(self._loop.time_s, text)
         self._spawned = now
 
     def add_event(self, time_s: float, text: str, level: int = INFO) -> None:
