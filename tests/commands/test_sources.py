@@ -40,6 +40,20 @@ def test_step_switches_at_its_time() -> None:
     assert source.sample(3.0) == -0.5
 
 
+def test_a_step_with_a_ramp_moves_in_a_straight_line_over_ramp_s() -> None:
+    source = command_source_from_config({"type": "step", "from": -0.2, "to": -0.5, "at": 0.5, "ramp_s": 0.1},
+                                        field="commands.c", source="s.yaml")
+    assert source.sample(0.499) == -0.2
+    assert source.sample(0.5) == -0.2
+    assert source.sample(0.525) == pytest.approx(-0.275, abs=1e-12)
+    assert source.sample(0.55) == pytest.approx(-0.35, abs=1e-12)
+    assert source.sample(0.6) == -0.5
+    with pytest.raises(ConfigError, match=r"commands\.c\.ramp_s.*-0\.1") as caught:
+        command_source_from_config({"type": "step", "from": 0, "to": 1, "at": 0, "ramp_s": -0.1},
+                                   field="commands.c", source="s.yaml")
+    assert "0 s or more" in str(caught.value)
+
+
 def test_chapter_expression_at_100_hz_holds_between_messages() -> None:
     source = ExpressionSource("0.1*sin(i/5)-0.5", rate_hz=100.0)
     for n, t in enumerate(loop_times(2.0)):

@@ -16,6 +16,7 @@ Scenario files describe a source as a mapping, read by
 
     {type: constant, value: -0.3}
     {type: step, from: -0.2, to: -0.5, at: 0.5}
+    {type: step, from: -0.2, to: -0.5, at: 0.5, ramp_s: 0.05}   (a ramp from at to at + ramp_s)
     {type: sine, amplitude: 0.1, frequency_hz: 3, offset: -0.5, rate_hz: 100, derivative: false}
     {type: expression, expression: "0.1*sin(i/5)-0.5", rate_hz: 100}
 """
@@ -122,18 +123,28 @@ class ConstantSource(CommandSource):
 
 @dataclass(frozen=True)
 class StepSource(CommandSource):
-    """``initial`` for ``t < at_s``, ``final`` from ``at_s`` (seconds) on."""
+    """``initial`` for ``t < at_s``, ``final`` from ``at_s + ramp_s`` (seconds) on, and between the two a
+    straight ramp (``ramp_s`` 0, the default: a step). A ramp is what a control engineer puts before a loop
+    whose derivative acts on the error: a step's first cycle asks ``d·Δ/period`` (the derivative kick), a
+    ramp's only ``d·Δ/ramp_s``."""
 
     initial: float
     final: float
     at_s: float
+    ramp_s: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("initial", "final", "at_s"):
+        for name in ("initial", "final", "at_s", "ramp_s"):
             object.__setattr__(self, name, _number(getattr(self, name), name, None))
+        if self.ramp_s < 0.0:
+            raise ConfigError("must be 0 s or more", field="ramp_s", value=self.ramp_s)
 
     def sample(self, t: float) -> float:
-        return self.initial if t < self.at_s else self.final
+        if t < self.at_s:
+            return self.initial
+        if t >= self.at_s + self.ramp_s:
+            return self.final
+        return self.initial + (self.final - self.initial) * (t - self.at_s) / self.ramp_s
 
 
 @dataclass(frozen=True)
@@ -247,7 +258,7 @@ class ExpressionSource(CommandSource):
 _KEYS: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     # type: (required keys, optional keys), besides "type"
     "constant": (frozenset({"value"}), frozenset()),
-    "step": (frozenset({"from", "to", "at"}), frozenset()),
+    "step": (frozenset({"from", "to", "at"}), frozenset({"ramp_s"})),
     "sine": (frozenset({"amplitude", "frequency_hz"}), frozenset({"offset", "rate_hz", "derivative"})),
     "expression": (frozenset({"expression"}), frozenset({"rate_hz"})),
 }
@@ -296,7 +307,10 @@ def command_source_from_config(config: Mapping[str, Any], *, field: str, source:
     if kind == "constant":
         return ConstantSource(number("value"))
     if kind == "step":
-        return StepSource(number("from"), number("to"), number("at"))
+        ramp_s = number("ramp_s", 0.0)
+        if ramp_s < 0.0:
+            raise ConfigError("must be 0 s or more", source=source, field=f"{field}.ramp_s", value=config["ramp_s"])
+        return StepSource(number("from"), number("to"), number("at"), ramp_s)
     rate_hz = number("rate_hz", 100.0)
     if rate_hz <= 0.0:
         raise ConfigError("rate must be above 0 Hz", source=source, field=f"{field}.rate_hz", value=config["rate_hz"])
