@@ -12,6 +12,7 @@ from pathlib import Path
 from jointctl.cli.common import (CONTROLLERS_HELP, SET_VALUES, industrial_hardware, loop_hardware_arguments,
                                  safety_arguments, safety_from_args, say_warnings, target_scenario)
 from jointctl.errors import JointCtlError
+from jointctl.identification.step_design import REMEDY_NAMES
 from jointctl.recording.metrics_file import metrics_json
 
 
@@ -79,8 +80,16 @@ def add_parsers(sub) -> None:
     tune_gains.add_argument("--overshoot-pct", type=float,
                             help="or: a position loop's step overshoot [%%], with --settling-s")
     tune_gains.add_argument("--settling-s", type=float, help="and the time its step takes to stay within 2 %% [s]")
-    tune_gains.add_argument("--step", type=float, default=0.1,
-                            help="the largest step [m, rad, or per s] that must not saturate the effort (default 0.1)")
+    tune_gains.add_argument("--step", type=float,
+                            help="the move the gains are designed for and checked at [m, rad, or per s], from the "
+                                 "reference the loop holds (default: the scenario's step of the controller, else 0.1)")
+    tune_gains.add_argument("--ramp-s", type=float, help="the step along a ramp of this many seconds (default: the "
+                                                         "scenario's ramp_s, else 0: a step)")
+    tune_gains.add_argument("--remedy", action="append", default=[], choices=REMEDY_NAMES,
+                            help="when the spec cannot be met at the step: measurement (derivative on the measured "
+                                 "speed: no kick), ramp (the step ramped so its kick fits), integral (i with i_clamp "
+                                 "and anti-windup: a loaded joint ends at its reference), feedforward (gravity from "
+                                 "the model), lower-bandwidth (the fastest settling the effort allows); repeatable")
     tune_gains.add_argument("--plant", type=Path, help="an identification's metrics.json (default: the robot model)")
     tune_gains.add_argument("--robust", action="append", default=[], metavar="FIELD=LOW:HIGH",
                             help="design against a family of plants: payload_kg or model.<link|joint>.<field> "
@@ -392,7 +401,7 @@ def _autotune(args: argparse.Namespace) -> int:
     else:
         result = autotune(lambda overrides: _loop_scenario(args, overrides), args.controller,
                           bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step, plant=plant, out_dir=args.out,
-                          settling_s=settling_s, safety=safety)
+                          settling_s=settling_s, safety=safety, ramp_s=args.ramp_s, remedies=tuple(args.remedy))
     print(metrics_json(result))
     say_warnings(result)
     print(f"wrote {result['yaml']}", file=sys.stderr)

@@ -50,10 +50,14 @@ from scipy.optimize import fsolve
 from jointctl.control.joint_controllers import derivative_law
 from jointctl.control.manager import read_yaml
 from jointctl.errors import ConfigError
-from jointctl.identification.frequency_response import (LoopModel, _crossing, loop_controller, measure,
+from jointctl.identification.frequency_response import (LoopModel, _crossing, held_reference, loop_controller,
+                                                         measure,
                                                          measure_servoed, model_plant, plant_friction, plant_of,
                                                          servo_reference)
 from jointctl.identification.plant_fit import IdentificationError
+from jointctl.identification.step_design import (INTEGRAL_TIMES, OVERSHOOT_TOLERANCE_PCT, SETTLING_TOLERANCE, StepDesign,
+                                                 lowest_settling, ramp_for_kick, solve_step, with_integral)
+from jointctl.identification.step_loop import JointLoop, holding_effort, reference_step, step_figures
 from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Guard, Safety, SaturationMonitor, envelope_for,
                                             run_guarded, saturation_text)
 from jointctl.recording.metrics_file import write_metrics
@@ -185,37 +189,162 @@ def spec_from_step(overshoot_pct: float, settling_s: float) -> tuple[float, floa
     return zeta, wn * bandwidth_ratio(zeta) / (2 * math.pi)
 
 
-def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: float = 0.7, step: float,
-             plant: dict | None = None, out_dir: str | Path | None = None, check_on_robot: bool = True,
-             settling_s: float | None = None, safety: Safety | None = None) -> dict:
+#: The step autotune designs for when neither the user nor the scenario names one [m, rad, or per s].
+DEFAULT_STEP = 0.1
+
+
+def scenario_move(scenario: Scenario, controller_name: str) -> dict | None:
+    """The move the scenario makes with ``controller_name``: ``{"from", "step", "ramp_s"}`` of its step source
+    [m or rad; s], or None when its command is not a step."""
+    config = (scenario.commands or {}).get(controller_name)
+    if not isinstance(config, dict) or config.get("type") != "step":
+        return None
+    start, end = float(config["from"]), float(config["to"])
+    return {"from": start, "step": end - start, "ramp_s": float(config.get("ramp_s", 0.0))}
+
+
+def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: float = 0.7,
+             step: float | None = None, plant: dict | None = None, out_dir: str | Path | None = None,
+             check_on_robot: bool = True, settling_s: float | None = None, safety: Safety | None = None,
+             ramp_s: float | None = None, remedies: tuple[str, ...] = (), alternatives: bool = True) -> dict:
     """Tune ``controller_name`` of the scenario ``scenario_for(overrides)`` gives (see the module
-    docstring); the metrics (gains, predicted and simulated figures). ``plant`` as for
-    :func:`jointctl.identification.frequency_response.bode`; ``safety`` the user's limits and the
-    fractions of :mod:`jointctl.identification.safety`."""
-    _check_spec(bandwidth_hz, step)
+    docstring); the metrics (gains, predicted and simulated figures). The move designed for and checked:
+    ``step`` [m or rad] (along a ramp of ``ramp_s`` [s]), else the scenario's own step of that controller,
+    else :data:`DEFAULT_STEP`, from the reference the controller holds. ``plant`` as for
+    :func:`jointctl.identification.frequency_response.bode`; ``safety`` the user's limits and the fractions
+    of :mod:`jointctl.identification.safety`; ``remedies`` (``--remedy``) change the loop designed. With
+    ``alternatives``, a spec the loop misses at the step gets each remedy that answers what binds
+    designed and checked on the simulated robot (``alternatives`` in the result)."""
     scenario: Scenario = scenario_for(())
+    move = scenario_move(scenario, controller_name)
+    reference = None
+    if step is None and move is not None:
+        step, reference = move["step"], move["from"]
+        ramp_s = move["ramp_s"] if ramp_s is None else ramp_s
+    step = DEFAULT_STEP if step is None else step
+    _check_spec(bandwidth_hz, step)
     session = Session(scenario)
     hardware = session.hardware
     controller, loop = loop_controller(session.manager, controller_name)
     joint = controller.joint
     hardware.read()
     pose = {name: hardware.position[k] for k, name in enumerate(hardware.joint_names)}
+    if reference is None and loop == "position":
+        reference = float(controller.reference_input[0])
     gravity = None if plant is not None else _gravity_load(session.robot, pose, joint, scenario.gravity_m_s2)
     gains = controller.pid.gains
-    result = tune(controller_name, joint, loop, session.loop.period_s, plant, session.robot, pose, gravity,
-                  controller.effort_limit, {"p": gains.p, "i": gains.i, "d": gains.d}, bandwidth_hz=bandwidth_hz,
-                  zeta=zeta, step=step, settling_s=settling_s, derivative=getattr(controller, "derivative", "error"),
-                  safety=safety, gravity_m_s2=scenario.gravity_m_s2)
+    period_s = session.loop.period_s
+    law = getattr(controller, "derivative", "error")
+    robot = session.robot
+
+    def design_with(remedy_set: tuple[str, ...]) -> dict:
+        return tune(controller_name, joint, loop, period_s, plant, robot, pose, gravity, controller.effort_limit,
+                    {"p": gains.p, "i": gains.i, "d": gains.d}, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step,
+                    settling_s=settling_s, derivative=law, safety=safety, gravity_m_s2=scenario.gravity_m_s2,
+                    ramp_s=ramp_s or 0.0, reference=reference, remedies=remedy_set)
+
+    result = design_with(tuple(remedies))
     session.close()
     if check_on_robot:
-        result["robot"] = _check_on_robot(scenario_for, controller_name, result["gains"], loop, result["check_step"],
-                                          bandwidth_hz, plant=plant, safety=safety)
+        result["robot"] = _check_on_robot(scenario_for, controller_name, result, loop, bandwidth_hz, plant=plant,
+                                          safety=safety)
         _warn(result, safety)
+        if loop == "position":
+            result["binds"] = _robot_binds(result)
+            if alternatives and result["binds"]:
+                result["alternatives"] = _alternatives(result, design_with, scenario_for, controller_name,
+                                                       plant=plant, safety=safety)
     result.setdefault("warnings", []).extend(spec_warnings(result))
+    if loop == "position":
+        result["warnings"].extend(_binding_warnings(result))
     if out_dir is not None:
         source = Path(scenario.controller_file)
         _write(out_dir, source.name, read_yaml(source), controller_name, result)
     return result
+
+
+def _robot_binds(result: dict) -> list[str]:
+    """What keeps the check on the robot from the spec at the step (see
+    :func:`~jointctl.identification.step_design.binding`), read off the robot's figures."""
+    from jointctl.identification.step_design import binding
+    from jointctl.identification.step_loop import StepFigures
+
+    robot = result["robot"]
+    figures = StepFigures(robot["step_overshoot_pct"], robot["step_settling_s"], robot["step_start"],
+                          robot["step_final"], robot["step_final_error"], robot["step_peak_effort"],
+                          robot["saturation"]["step"]["share"])
+    reference = np.array([result["reference"], result["reference"] + result["step"]])
+    gains = result["gains"]
+    loop = JointLoop(result["mass"], result["damping"], 0.001, p=gains["p"], d=gains["d"])
+    binds = list(binding(loop, figures, reference, result["spec"]["overshoot_pct"],
+                         result["spec"]["step_settling_s"]))
+    if binds == ["spec"] and result.get("binds"):
+        binds = list(result["binds"])
+    if "max-effort" in (result.get("binds") or []) and "max-effort" not in binds:
+        binds.append("max-effort")
+    return binds
+
+
+def _alternatives(result: dict, design_with, scenario_for, controller_name: str, *, plant, safety) -> dict:
+    """Each remedy that answers what binds (:data:`~jointctl.identification.step_design.REMEDIES`) added to
+    those applied, designed and its step checked on the simulated robot: {remedy: {gains, robot figures,
+    meets}} (a design the remedy cannot make: {error})."""
+    from jointctl.identification.step_design import REMEDIES
+
+    applied = tuple(result.get("remedies") or ())
+    wanted: list[str] = []
+    for bind in result["binds"]:
+        for remedy in REMEDIES.get("effort" if bind in ("max-effort", "spec") else bind, ()):
+            if remedy in applied or remedy in wanted:
+                continue
+            if remedy == "measurement" and result["derivative"] == "measurement":
+                continue
+            if remedy == "ramp" and (result.get("ramp_s") or result["derivative"] == "measurement"):
+                continue
+            wanted.append(remedy)
+    found = {}
+    for remedy in wanted:
+        try:
+            trial = design_with((*applied, remedy))
+            trial["robot"] = _check_on_robot(scenario_for, controller_name, trial, "position", None, plant=plant,
+                                             safety=safety, sweep=False)
+            trial["binds"] = _robot_binds(trial)
+        except IdentificationError as exc:
+            found[remedy] = {"error": str(exc)}
+            continue
+        robot = trial["robot"]
+        found[remedy] = {"gains": trial["gains"], "derivative": trial["derivative"], "ramp_s": trial["ramp_s"],
+                         "feedforward": trial["feedforward"], "meets": not trial["binds"], "binds": trial["binds"],
+                         **{k: robot[k] for k in ("step_overshoot_pct", "step_settling_s", "step_final_error",
+                                                  "step_peak_effort")}}
+    return found
+
+
+def _binding_warnings(result: dict) -> list[str]:
+    """A sentence for each constraint that keeps the step on the robot from the spec, with the remedies
+    checked on the simulated robot."""
+    binds = result.get("binds") or []
+    if not binds:
+        return []
+    robot = result.get("robot") or {}
+    what = {"gravity": f"the gravity load: the joint rests {robot.get('step_final_error', math.nan):.3g} from its "
+                       f"reference (beyond the 2 % band of the step)",
+            "effort": f"the effort limit {result['effort_limit']:g}: the step saturates the actuator",
+            "max-effort": f"--max-effort {result['effort_limit']:g}: the step asks "
+                          f"{robot.get('step_peak_effort', math.nan):.4g}",
+            "damping": "the plant's own damping: even d = 0 overshoots less than asked",
+            "spec": "the spec itself at this step"}
+    lines = [f"at the step of {result['step']:g} the spec is not met; binds: "
+             + "; ".join(what.get(b, b) for b in binds) + "."]
+    for remedy, alt in (result.get("alternatives") or {}).items():
+        if "error" in alt:
+            lines.append(f"--remedy {remedy}: not possible ({alt['error']}).")
+            continue
+        lines.append(f"--remedy {remedy}: overshoot {alt['step_overshoot_pct']:.3g} %, settling "
+                     f"{alt['step_settling_s']:.3g} s, rest {alt['step_final_error']:.3g} from the reference, peak "
+                     f"effort {alt['step_peak_effort']:.4g} on the simulated robot"
+                     + (" (meets the spec)" if alt["meets"] else f" (still binds: {', '.join(alt['binds'])})") + ".")
+    return lines
 
 
 def _check_spec(bandwidth_hz, step) -> None:
@@ -227,17 +356,20 @@ def _check_spec(bandwidth_hz, step) -> None:
 def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: dict | None, robot, pose: dict,
          gravity: float | None, effort_limit: float, previous_gains: dict, *, bandwidth_hz: float, zeta: float,
          step: float, settling_s: float | None = None, derivative: str = "error", safety: Safety | None = None,
-         gravity_m_s2=(0.0, 0.0, -9.81)) -> dict:
-    """Design the gains for the spec and predict them on the sampled model (no robot involved): the
-    plant from ``plant`` (an identification's metrics, its ``gravity_load_n`` the load) or else
-    ``robot``'s model at ``pose`` with ``gravity`` [N or N·m, magnitude] as the load. Refused when
-    a step of ``step`` would exceed ``effort_limit``, naming the bandwidth it allows. ``settling_s``
-    is recorded in the spec when the spec was given as overshoot and settling time
-    (:func:`spec_from_step` made ``zeta`` and ``bandwidth_hz`` of it). ``derivative`` is the law the
-    position controller runs ("error", ros_controllers', or "measurement"): the design and the model
-    follow it. ``safety``'s ``--max-effort`` lowers ``effort_limit`` [N or N·m]; its position and
-    speed budgets (the robot at ``pose``, under ``gravity_m_s2``) bound the check step (see the
-    module docstring)."""
+         gravity_m_s2=(0.0, 0.0, -9.81), ramp_s: float = 0.0, reference: float | None = None,
+         remedies: tuple[str, ...] = ()) -> dict:
+    """Design the gains for the spec and predict them on the models (no robot involved): the plant from
+    ``plant`` (an identification's metrics, its ``gravity_load_n`` the load) or else ``robot``'s model at
+    ``pose`` with ``gravity`` [N or N·m, magnitude] as the load. ``settling_s`` is recorded in the spec when
+    the spec was given as overshoot and settling time (:func:`spec_from_step` made ``zeta`` and
+    ``bandwidth_hz`` of it). ``derivative`` is the law the position controller runs ("error",
+    ros_controllers', or "measurement"). ``safety``'s ``--max-effort`` lowers ``effort_limit`` [N or N·m].
+
+    A position loop is designed for the move that will run (:func:`_design_position`): a step of ``step``
+    from the ``reference`` it holds (default: where the joint is), along a ramp of ``ramp_s`` [s], on the
+    loop as it runs (the law, the effort clamp, the gravity load over the move); ``remedies`` (of
+    :data:`~jointctl.identification.step_design.REMEDY_NAMES`) change the loop designed. A velocity loop is
+    refused when a step of ``step`` would exceed ``effort_limit``, naming the bandwidth it allows."""
     safety = safety or DEFAULT
     user_effort = safety.limits.max_effort
     effort_flag = "effort limit"
@@ -250,47 +382,185 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     else:
         mass, damping = model_plant(robot, joint, pose)
         source = "robot model"
-    gains = design(mass, damping, loop=loop, bandwidth_hz=bandwidth_hz, zeta=zeta, period_s=period_s,
-                   derivative=derivative)
+    common = {"controller": controller_name, "joint": joint, "loop": loop, "plant_source": source, "mass": mass,
+              "damping": damping, "gravity_load": gravity, "effort_limit": effort_limit, "step": step,
+              "previous_gains": dict(previous_gains)}
+    if loop == "position":
+        return {**common, **_design_position(
+            mass, damping, period_s, plant, robot, joint, pose, effort_limit, effort_flag,
+            bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s, derivative=derivative,
+            safety=safety, gravity_m_s2=gravity_m_s2, ramp_s=ramp_s, reference=reference, remedies=remedies)}
+    gains = design(mass, damping, loop=loop, bandwidth_hz=bandwidth_hz, zeta=zeta, period_s=period_s)
     need = gains["p"] * step + gravity
     if need > effort_limit:
-        p_max = (effort_limit - gravity) / step
-        if loop == "position" and derivative == "error":
-            # No closed form with the zero: p grows about as the bandwidth squared (the design's own p).
-            achievable = bandwidth_hz * math.sqrt(max(p_max, 0.0) / gains["p"])
-        else:
-            achievable = _achievable_hz(mass, damping, loop, zeta, p_max)
+        achievable = _achievable_hz(mass, damping, loop, zeta, (effort_limit - gravity) / step)
         raise IdentificationError(
             f"a step of {step:g} would ask {need:.4g} of the joint's {effort_flag} {effort_limit:g} (p {gains['p']:.4g}"
-            f" and a gravity load of {gravity:.4g}); the most this step allows is "
-            f"{'about ' if loop == 'position' and derivative == 'error' else ''}{achievable:.3g} Hz",
+            f" and a gravity load of {gravity:.4g}); the most this step allows is {achievable:.3g} Hz",
             field="bandwidth_hz", value=bandwidth_hz)
-    check_step, note = step, None
-    kick = gains["d"] * step / period_s if loop == "position" and derivative == "error" else 0.0
-    if kick and need + kick > effort_limit:
-        # Derivative on the error: a step's first cycle asks the kick d·step/period as well; clamped, it
-        # delivers less than the impulse d·step the model counts on. The check steps by the most that fits.
-        check_step = (effort_limit - gravity) / (gains["p"] + gains["d"] / period_s)
-        note = (f"the check steps by {check_step:.3g}, not {step:g}: with the derivative on the error a step's "
-                f"first cycle asks d·step/period more (the derivative kick, {kick:.4g} for {step:g}), and "
-                f"{step:g} would exceed the {effort_flag} {effort_limit:g} there; larger steps overshoot less than "
-                "designed (the kick is clamped)")
     model = LoopModel(mass, damping, gains["p"], gains["i"], gains["d"], period_s, loop, derivative)
     check_step, note, step_plan = _bounded_step(model, robot, joint, pose, safety, gravity_m_s2, plant, loop,
-                                                step, check_step, note, effort_limit, gravity)
-    predicted = {"bandwidth_hz": _model_bandwidth(model, bandwidth_hz)}
-    if loop == "position":
-        t, y = _model_step(model, seconds=max(3.0, 3.0 * (settling_s or 0.0)))
-        predicted["overshoot_pct"] = 100 * float((y.max() - y[-1]) / y[-1])
-        predicted["settling_s"] = settling_time(t, y, 0.0, float(y[-1]))
-    return {"controller": controller_name, "joint": joint, "loop": loop, "derivative": derivative if loop == "position"
-            else None, "plant_source": source, "mass": mass,
-            "damping": damping, "gravity_load": gravity, "effort_limit": effort_limit, "step": step,
-            "check_step": check_step, **({"note": note} if note else {}), "step_plan": step_plan,
-            "spec": {"bandwidth_hz": bandwidth_hz, "zeta": zeta if loop == "position" else None,
-                     "overshoot_pct": 100 * overshoot_of(zeta) if loop == "position" else None,
-                     "settling_s": settling_s},
-            "gains": gains, "model": predicted, "previous_gains": dict(previous_gains)}
+                                                step, step, None, effort_limit, gravity)
+    return {**common, "derivative": None, "check_step": check_step, **({"note": note} if note else {}),
+            "step_plan": step_plan, "spec": {"bandwidth_hz": bandwidth_hz, "zeta": None, "overshoot_pct": None,
+                                             "settling_s": settling_s},
+            "gains": gains, "model": {"bandwidth_hz": _model_bandwidth(model, bandwidth_hz)}}
+
+
+def _hold_profile(plant: dict | None, robot, joint: str, pose: dict, gravity_m_s2):
+    """``τ_hold(q)`` [N or N·m] for the step model: an identified plant's constant ``gravity_load_n``, else
+    the robot model's over the joint's range (:func:`~jointctl.identification.step_loop.holding_effort`)."""
+    if plant is not None:
+        load = float(plant.get("gravity_load_n", 0.0))
+        return (lambda q: load) if load else None
+    return holding_effort(robot, joint, pose, gravity_m_s2)
+
+
+def _design_position(mass: float, damping: float, period_s: float, plant, robot, joint: str, pose: dict,
+                     effort_limit: float, effort_flag: str, *, bandwidth_hz: float, zeta: float, step: float,
+                     settling_s: float | None, derivative: str, safety: Safety, gravity_m_s2, ramp_s: float,
+                     reference: float | None, remedies: tuple[str, ...]) -> dict:
+    """A position loop's gains for the move that will run (see :func:`tune` and
+    :mod:`jointctl.identification.step_design`): the linear design for ``zeta`` and ``bandwidth_hz`` first;
+    its step overshoot (``exp(-πζ/√(1-ζ²))``) and settling time (``settling_s``, else the linear loop's) are
+    then met on the loop as it runs at the step, when the linear design does not already meet them there."""
+    law = "measurement" if "measurement" in remedies else derivative
+    feedforward = "feedforward" in remedies
+    hold = _hold_profile(plant, robot, joint, pose, gravity_m_s2)
+    start = float(pose.get(joint, 0.0)) if reference is None else float(reference)
+    controller_limit = effort_limit if effort_flag == "effort limit" else _urdf_effort(robot, joint)
+    try:
+        linear = design(mass, damping, loop="position", bandwidth_hz=bandwidth_hz, zeta=zeta, period_s=period_s,
+                        derivative=law)
+    except IdentificationError as exc:
+        if "own damping" not in exc.message:
+            raise
+        linear = undamped_design(mass, damping, bandwidth_hz, period_s)
+    linear_model = LoopModel(mass, damping, linear["p"], 0.0, linear["d"], period_s, "position", law)
+    t, y = _model_step(linear_model, seconds=max(3.0, 3.0 * (settling_s or 0.0)))
+    target_overshoot = 100 * overshoot_of(zeta)
+    target_settling = settling_s if settling_s is not None else settling_time(t, y, 0.0, float(y[-1]))
+    if "ramp" in remedies and not ramp_s:
+        probe = JointLoop(mass, damping, period_s, controller_limit, hold, p=linear["p"], d=linear["d"],
+                          derivative=law)
+        ramp_s = ramp_for_kick(probe, step)
+
+    def reference_for(ts: float) -> np.ndarray:
+        return reference_step(start, step, hold_s=0.05, ramp_s=ramp_s, after_s=check_after_s(ts), period_s=period_s)
+
+    base = JointLoop(mass, damping, period_s, controller_limit, hold, p=linear["p"], d=linear["d"], derivative=law,
+                     feedforward=feedforward)
+    clamp = _integral_clamp(base, start, step, controller_limit) if "integral" in remedies else None
+    if clamp is not None:
+        base = with_integral(base, target_settling, clamp, INTEGRAL_TIMES[0])
+    moves = reference_for(target_settling)
+    first = base.step(moves)
+    close = (abs(_finite(first.overshoot_pct) - target_overshoot) <= OVERSHOOT_TOLERANCE_PCT
+             and math.isfinite(first.settling_s) and abs(first.settling_s / target_settling - 1) <= SETTLING_TOLERANCE)
+    found = StepDesign(base, first, True, ()) if close else solve_step(
+        base, moves, overshoot_pct=target_overshoot, settling_s=target_settling, integral_clamp=clamp)
+    promised_settling = target_settling
+    if "lower-bandwidth" in remedies and not found.met and "effort" in found.binds:
+        promised_settling, found = lowest_settling(base, reference_for, overshoot_pct=target_overshoot,
+                                                   settling_s=target_settling, integral_clamp=clamp)
+        moves = reference_for(promised_settling)
+    figures = found.figures
+    gains = found.loop.gains
+    q, v, u = found.loop.run(moves)
+    binds = list(found.binds) if not found.met else []
+    if law == "error" and not ramp_s and found.loop.d * abs(step) / period_s > controller_limit:
+        kick = f"the derivative kick d·step/period {found.loop.d * abs(step) / period_s:.4g} is clamped at the " \
+               f"effort limit {controller_limit:g} (designed for)"
+    else:
+        kick = None
+    peak_effort = float(np.abs(u).max())
+    if effort_flag == "--max-effort" and peak_effort > effort_limit:
+        binds.append("max-effort")
+    step_plan = _step_plan(robot, joint, pose, safety, q, v, u, start, step, effort_limit, effort_flag,
+                           ramp_s)
+    model = LoopModel(mass, damping, gains["p"], gains["i"], gains["d"], period_s, "position", law)
+    predicted = {"bandwidth_hz": _model_bandwidth(model, bandwidth_hz), **figures.as_dict()}
+    notes = [n for n in (kick, step_plan.pop("note", None)) if n]
+    if promised_settling != target_settling:
+        notes.append(f"settling relaxed from {target_settling:.3g} s to {promised_settling:.3g} s: the most the "
+                     f"{effort_flag} allows at this step (--remedy lower-bandwidth)")
+    return {"derivative": law, "feedforward": ["gravity"] if feedforward else [], "ramp_s": ramp_s,
+            "reference": start, "model_rest": found.loop.rest(start)[0], "check_step": step, **({"note": "; ".join(notes)} if notes else {}),
+            "step_plan": step_plan, "remedies": list(remedies), "binds": binds,
+            "spec": {"bandwidth_hz": bandwidth_hz, "zeta": zeta, "overshoot_pct": target_overshoot,
+                     "settling_s": settling_s, "step_settling_s": promised_settling},
+            "gains": gains, "model": predicted, "linear_gains": linear}
+
+
+def check_after_s(settling_s: float) -> float:
+    """How long a step is watched [s], on the model and on the robot alike (the final value is the mean of
+    its last 0.2 s): 3 s, or five settling times."""
+    return max(3.0, 5 * settling_s)
+
+
+def _finite(value: float) -> float:
+    return value if math.isfinite(value) else 0.0
+
+
+def _urdf_effort(robot, joint: str) -> float:
+    spec = robot.joint(joint)
+    return spec.limits.effort if spec.limits is not None and spec.limits.effort > 0 else math.inf
+
+
+def _integral_clamp(loop: JointLoop, start: float, step: float, limit: float) -> float:
+    """The integral's clamp [N or N·m] for a loaded joint: twice the largest load over the move, within the
+    effort limit (the integral must hold the load, and no more than that is its job)."""
+    load = max(abs(loop.load(start)), abs(loop.load(start + step)))
+    clamp = 2.0 * load if load > 0 else 0.1 * limit
+    return float(min(clamp, limit)) if math.isfinite(limit) else float(clamp)
+
+
+def undamped_design(mass: float, damping: float, bandwidth_hz: float, period_s: float) -> dict:
+    """Gains ``{"p", "i", "d"}`` for a plant whose own damping exceeds the ζ asked at ``bandwidth_hz``: d = 0,
+    and the p whose sampled loop has that -3 dB bandwidth (the loop is then better damped than asked)."""
+    wb = 2 * math.pi * bandwidth_hz
+
+    def miss(x):
+        model = LoopModel(mass, damping, x[0], 0.0, 0.0, period_s, "position", "measurement")
+        gain, _ = model.response([bandwidth_hz])
+        return [gain[0] + 3.0103]
+
+    # An overdamped loop's bandwidth is about p/b: the start.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        (p,) = fsolve(miss, [max(damping * wb, mass * wb**2)], xtol=1e-10)
+    return {"p": float(p), "i": 0.0, "d": 0.0}
+
+
+def loop_zeta(mass: float, damping: float, p: float, d: float = 0.0) -> float:
+    """The damping ratio ``(b + d)/(2·√(p·m))`` of the mass-damper loop."""
+    return (damping + d) / (2 * math.sqrt(p * mass)) if p > 0 and mass > 0 else math.nan
+
+
+def _step_plan(robot, joint: str, pose: dict, safety: Safety, q, v, u, start: float, step: float,
+               effort_limit: float, effort_flag: str, ramp_s: float) -> dict:
+    """The step's predicted peaks beside their limits: refused (IdentificationError naming the limit) when
+    its motion leaves the joint's range or ``--workspace``, or moves faster than the velocity limit or
+    ``--max-velocity``; what binds ("step": the step asked fits)."""
+    envelope = envelope_for(robot, joint, start, safety, pose=pose)
+    lower, upper = envelope.window
+    low, high = float(min(q.min(), start, start + step)), float(max(q.max(), start, start + step))
+    unit = envelope.unit
+    names = envelope.limit_names()
+    if low < lower or high > upper:
+        beyond = low if low < lower else high
+        raise IdentificationError(f"a step of {step:g} {unit} from {start:.4g} would reach {beyond:.4g} {unit}, "
+                                  f"beyond {names['position']} [{lower:g}, {upper:g}]: ask a smaller --step",
+                                  field="--step", value=step)
+    speed = float(np.abs(v).max())
+    if speed > envelope.velocity_max:
+        raise IdentificationError(f"a step of {step:g} {unit} would move at {speed:.3g} {unit}/s, beyond "
+                                  f"{names['velocity']} {envelope.velocity_max:g}: ask a smaller --step, or a ramp "
+                                  "(--ramp-s)", field="--step", value=step)
+    return {"step": step, "ramp_s": ramp_s, "binds": "step", "peak_position": high if step >= 0 else low,
+            "peak_velocity": speed, "peak_effort": float(np.abs(u).max()), "effort_limit": effort_limit,
+            "effort_flag": effort_flag, "velocity_limit": envelope.velocity_max, "window": [lower, upper],
+            "room": envelope.room}
 
 
 def _bounded_step(model: LoopModel, robot, joint: str, pose: dict, safety: Safety, gravity_m_s2, plant, loop: str,
@@ -348,7 +618,7 @@ def _warn(result: dict, safety: Safety | None) -> None:
 
 
 def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: float, zeta: float = 0.7,
-                     step: float, plant: dict | None = None, gravity_m_s2=(0.0, 0.0, -9.81),
+                     step: float | None = None, plant: dict | None = None, gravity_m_s2=(0.0, 0.0, -9.81),
                      out_dir: str | Path | None = None, check_on_robot: bool = True,
                      settling_s: float | None = None, safety: Safety | None = None) -> dict:
     """Tune a loop that runs on a served robot (``session.hardware`` a
@@ -356,6 +626,7 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
     gains through dynamic_reconfigure). The design is :func:`tune`'s; the check sets the new gains
     on the served node, steps and sweeps it through the command topic, and puts the previous gains
     back whatever happens; the YAML is the served node's controller parameters with the new gains."""
+    step = DEFAULT_STEP if step is None else step
     _check_spec(bandwidth_hz, step)
     hardware = session.hardware
     joint = hardware.joint_of(controller_name)
@@ -370,7 +641,8 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
     law = derivative_law(hardware.controller_parameters().get(controller_name.rsplit("/", 1)[-1], {}))
     result = tune(controller_name, joint, loop, session.loop.period_s, plant, session.robot, pose, gravity,
                   effort_limit, previous, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s,
-                  derivative=law, safety=safety, gravity_m_s2=gravity_m_s2)
+                  derivative=law, safety=safety, gravity_m_s2=gravity_m_s2,
+                  reference=held_reference(hardware, joint) if loop == "position" else None)
     if check_on_robot:
         hardware.set_gains(controller_name, result["gains"])
         try:
@@ -396,7 +668,10 @@ def spec_warnings(result: dict) -> list[str]:
     from jointctl.metrics.expectations import expectation_warnings
 
     spec = result["spec"]
-    wanted = {key: spec.get(key) for key in ("bandwidth_hz", "overshoot_pct", "settling_s")}
+    # A spec given as overshoot and settling time asks for no bandwidth (its bandwidth is the ideal loop's).
+    asked = ("overshoot_pct", "settling_s") if spec.get("settling_s") is not None else (
+        "bandwidth_hz", "overshoot_pct", "settling_s")
+    wanted = {key: spec.get(key) for key in asked}
     wanted = {key: float(value) for key, value in wanted.items() if value is not None}
     found = []
     for where, figures in (("the model", result.get("model")), ("the robot", result.get("robot"))):
@@ -438,20 +713,46 @@ def _model_bandwidth(model: LoopModel, around_hz: float) -> float:
     return _crossing(f, gain - dc[0], -3.0103)
 
 
-def _overrides(controller_name: str, gains: dict) -> list[str]:
-    return [f"controllers.{controller_name}.pid.{k}={v!r}" for k, v in gains.items()]
+def _overrides(controller_name: str, result: dict) -> list[str]:
+    """The scenario overrides that run ``result``'s loop: its PID gains (``i_clamp`` and ``antiwindup`` with an
+    integral), its derivative law and gravity feed-forward when a remedy changed them."""
+    name = f"controllers.{controller_name}"
+    found = [f"{name}.pid.{k}={v!r}" for k, v in result["gains"].items()]
+    if result.get("derivative") == "measurement":
+        found.append(f"{name}.derivative=measurement")
+    if "gravity" in (result.get("feedforward") or ()):
+        found.append(f"{name}.feedforward.gravity=true")
+    return found
 
 
-def _check_on_robot(scenario_for, controller_name: str, gains: dict, loop: str, step: float,
-                    bandwidth_hz: float, *, plant: dict | None = None, safety: Safety | None = None) -> dict:
-    """The simulated robot with the new gains: a step from rest, and a sweep around the bandwidth (each
-    sine at most ``step``, inside the safe amplitude); the saturation of both."""
-    scenario = scenario_for(_overrides(controller_name, gains))
+def _rest_override(result: dict) -> list[str]:
+    """The joint placed where the designed loop rests holding its reference (the model's rest): a check that
+    starts there does not begin with the droop's own transient."""
+    if result.get("loop") != "position" or result.get("reference") is None:
+        return []
+    return [f"initial_positions.{result['joint']}={result['model_rest']!r}"] if "model_rest" in result else []
+
+
+def _check_on_robot(scenario_for, controller_name: str, result: dict, loop: str, bandwidth_hz: float | None, *,
+                    plant: dict | None = None, safety: Safety | None = None, sweep: bool = True) -> dict:
+    """The simulated robot with ``result``'s loop: the move designed for (a step of ``check_step`` from the
+    reference, along ``ramp_s``) from rest, and (``sweep``) a sweep around the bandwidth (each sine at most the
+    step, inside the safe amplitude); the saturation of both."""
+    scenario = scenario_for([*_overrides(controller_name, result), *_rest_override(result)])
     session = Session(scenario)
     controller = session.manager.controller(controller_name)
+    gains = result["gains"]
+    # An integral is charged before the step (ten of its time constants p/i), as on a robot that held its pose.
+    hold_s = max(1.0, 10 * gains["p"] / gains["i"]) if gains.get("i") else 1.0
+    step = result["check_step"]
     figures = _step(session, controller.joint, controller.set_reference, loop, step, safety=safety,
-                    effort_limit=controller.effort_limit,
-                    reference=controller.reference_input[0] if loop == "position" else None)
+                    effort_limit=controller.effort_limit, hold_s=hold_s,
+                    after_s=check_after_s(result["spec"].get("step_settling_s") or 0.0),
+                    reference=result.get("reference", controller.reference_input[0]) if loop == "position" else None,
+                    ramp_s=result.get("ramp_s") or 0.0)
+    if not sweep:
+        session.close()
+        return figures
     frequencies = np.logspace(math.log10(bandwidth_hz / 2.5), math.log10(bandwidth_hz * 2.5), 15)
     points, _ = measure(scenario, controller_name, frequencies, amplitude_cap=step, plant=plant, safety=safety)
     low, _ = measure(scenario, controller_name, [bandwidth_hz / 20], amplitude_cap=step, plant=plant, safety=safety)
@@ -493,18 +794,20 @@ def _check_servoed(session: Session, joint: str, loop: str, step: float, bandwid
 
 def _step(session: Session, joint: str, set_reference, loop: str, step: float, *, hold_s: float = 1.0,
           after_s: float = 3.0, safety: Safety | None = None, effort_limit: float | None = None,
-          reference: float | None = None) -> dict:
-    """A step of ``step`` from rest after ``hold_s``, watched for ``after_s``: overshoot [%] and the
-    damping ratio it implies (a position loop), start and final values, and the share of its cycles
-    at the actuator's limits; the user's limits guarded (SafetyStop, the joint brought back). A
-    position loop's reference steps from ``reference``, the one it holds (default: where the joint
-    is; a loop under gravity rests below its reference, and stepping from there would step the
-    reference by less than ``step``, or backwards, the derivative on the error kicking accordingly)."""
+          reference: float | None = None, ramp_s: float = 0.0) -> dict:
+    """A step of ``step`` from rest after ``hold_s``, along a ramp of ``ramp_s`` [s], watched for ``after_s``:
+    the figures of :func:`~jointctl.identification.step_loop.step_figures` (overshoot [%], 2 % settling time,
+    start, final value and its distance to the reference, peak effort), the damping ratio the overshoot
+    implies (a position loop), and the share of its cycles at the actuator's limits; the user's limits
+    guarded (SafetyStop, the joint brought back). A position loop's reference steps from ``reference``, the
+    one it holds (default: where the joint is; a loop under gravity rests below its reference, and stepping
+    from there would step the reference by less than ``step``, or backwards, the derivative on the error
+    kicking accordingly)."""
     safety = safety or DEFAULT
     hardware = session.hardware
     index = hardware.joint_index(joint)
     measured = hardware.position if loop == "position" else hardware.velocity
-    samples: list[float] = []
+    samples: list[tuple[float, float, float]] = []
     start: dict = {}
     began = session.loop.time_s
     hardware.read()
@@ -516,19 +819,25 @@ def _step(session: Session, joint: str, set_reference, loop: str, step: float, *
                   band=GUARD_FRACTION * (upper - lower) if math.isfinite(upper - lower) else math.inf)
     monitor = SaturationMonitor(hardware, index, envelope.effort_limit, envelope.velocity_limit,
                                 safety.saturation_margin)
+    origin = held if loop == "position" else 0.0
+
+    def target(time_s: float) -> float:
+        moved = time_s - began - hold_s
+        if moved < 0:
+            return origin
+        return origin + step * (min(1.0, moved / ramp_s) if ramp_s > 0 else 1.0)
 
     def drive(time_s: float) -> None:
-        if time_s - began >= hold_s:
-            if "value" not in start:
-                start["value"] = measured[index]
-                start["reference"] = held if loop == "position" else 0.0
-            set_reference(guard.reference(time_s, start["reference"] + step))
-        else:
-            guard.reference(time_s, held if loop == "position" else 0.0)
+        # The reference held from the first cycle (the controller started holding where the joint was).
+        value = guard.reference(time_s, target(time_s))
+        if time_s - began >= hold_s and "value" not in start:
+            start["value"] = measured[index]
+            start["reference"] = origin
+        set_reference(value)
 
     def record(time_s: float) -> None:
-        if time_s - began >= hold_s:
-            samples.append(measured[index])
+        if time_s - began >= hold_s - session.loop.period_s / 2:
+            samples.append((measured[index], target(time_s), hardware.effort[index]))
 
     session.loop.add_input(drive)
     watchers = (record, monitor, guard.observe)  # bound once: removal compares identity
@@ -542,16 +851,16 @@ def _step(session: Session, joint: str, set_reference, loop: str, step: float, *
             session.loop.remove_observer(hook)
     if guard.trip is not None:
         raise guard.error("the check step")
-    y = np.array(samples)
-    final = float(y[-200:].mean()) if y.size >= 400 else float(y[-max(1, y.size // 5):].mean())
-    rise = final - start["value"]
-    overshoot = 100 * (y.max() - final) / rise if rise > 0 else math.nan
-    settling = settling_time(np.arange(y.size) * session.loop.period_s, y, start["value"], final)
+    y, r, u = (np.array(column) for column in zip(*samples))
+    figures = step_figures(np.arange(y.size) * session.loop.period_s, y, r, u)
+    overshoot = figures.overshoot_pct
     share = monitor.share(began + hold_s - 1e-9)
-    return {"step_overshoot_pct": float(overshoot) if loop == "position" else None,
-            "step_zeta": zeta_of(overshoot / 100) if loop == "position" else None,
-            "step_settling_s": settling, "step_final": final, "step_start": start["value"],
-            "step_reference": start["reference"],
+    position = loop == "position"
+    return {"step_overshoot_pct": float(overshoot) if position else None,
+            "step_zeta": zeta_of(overshoot / 100) if position else None,
+            "step_settling_s": figures.settling_s, "step_final": figures.final, "step_start": figures.start,
+            "step_final_error": figures.final_error, "step_peak_effort": figures.peak_effort,
+            "step_reference": start.get("reference", origin),
             "saturation": {**monitor.describe(), "threshold": safety.saturation_share,
                            "step": {**share, "text": saturation_text(share, monitor, envelope.unit)}}}
 

@@ -73,24 +73,42 @@ def damping_for_overshoot(loop: JointLoop, reference: np.ndarray, overshoot_pct:
     return loop.with_gains(d=0.5 * (low + high))
 
 
-def with_integral(loop: JointLoop, settling_s: float, i_clamp: float) -> JointLoop:
-    """``loop`` with an integral whose time constant is twice the settling time asked (``i = p/(2·settling_s)``:
-    slow beside the loop, so that it changes the step little and takes out what the load leaves), its term
+#: The integral's time constants ``p/i`` tried, in settling times asked: the fastest that meets the spec wins
+#: (a faster integral takes a sag out sooner; a slower one disturbs the step less: its slow tail stays inside
+#: the settling band).
+INTEGRAL_TIMES = (2.0, 4.0, 8.0, 16.0)
+
+
+def with_integral(loop: JointLoop, settling_s: float, i_clamp: float, times: float = 4.0) -> JointLoop:
+    """``loop`` with an integral whose time constant ``p/i`` is ``times`` the settling time asked, its term
     clamped to ±``i_clamp`` [N or N·m] with anti-windup (ros_controllers' ``i_clamp``, ``antiwindup``)."""
-    return loop.with_gains(i=loop.p / (2 * settling_s), i_clamp=i_clamp, antiwindup=True)
+    return loop.with_gains(i=loop.p / (times * settling_s), i_clamp=i_clamp, antiwindup=True)
 
 
 def solve_step(loop: JointLoop, reference: np.ndarray, *, overshoot_pct: float, settling_s: float,
                integral_clamp: float | None = None, iterations: int = 14) -> StepDesign:
     """The gains of ``loop`` (its law, clamp, load and feed-forward kept; ``p`` the starting guess) whose
     response to ``reference`` overshoots ``overshoot_pct`` and settles in ``settling_s`` [s]; with
-    ``integral_clamp`` [N or N·m], an integral as :func:`with_integral` makes it (see the module docstring)."""
+    ``integral_clamp`` [N or N·m], an integral as :func:`with_integral` makes it, of the time constants of
+    :data:`INTEGRAL_TIMES` that meet the spec the one that needs the least ``p`` (a fast integral's tail is
+    kept inside the settling band only by a stiff loop), the fastest of them on a tie (see the module
+    docstring)."""
+    if integral_clamp is None:
+        return _solve(loop, reference, overshoot_pct, settling_s, None, iterations)
+    found = [_solve(loop, reference, overshoot_pct, settling_s, (integral_clamp, times), iterations)
+             for times in INTEGRAL_TIMES]
+    met = [design for design in found if design.met]
+    return min(met, key=lambda design: design.loop.p) if met else found[0]
+
+
+def _solve(loop: JointLoop, reference: np.ndarray, overshoot_pct: float, settling_s: float,
+           integral: tuple[float, float] | None, iterations: int) -> StepDesign:
     best: tuple[float, JointLoop, StepFigures] | None = None
     p = loop.p
     for _ in range(iterations):
         trial = loop.with_gains(p=p)
-        if integral_clamp is not None:
-            trial = with_integral(trial, settling_s, integral_clamp)
+        if integral is not None:
+            trial = with_integral(trial, settling_s, *integral)
         trial = damping_for_overshoot(trial, reference, overshoot_pct)
         figures = trial.step(reference)
         settling = figures.settling_s if math.isfinite(figures.settling_s) else 10 * settling_s
@@ -129,4 +147,50 @@ def binding(loop: JointLoop, figures: StepFigures, reference: np.ndarray, oversh
     return tuple(binds)
 
 
-__all__ = ["StepDesign", "binding", "damping_for_overshoot", "solve_step", "with_integral"]
+
+
+#: What a control engineer does about each binding constraint: the ``--remedy`` that answers it.
+REMEDIES = {"gravity": ("feedforward", "integral"), "effort": ("lower-bandwidth", "ramp", "measurement"),
+            "kick": ("measurement", "ramp")}
+#: Every remedy, as ``--remedy`` names it.
+REMEDY_NAMES = ("measurement", "ramp", "integral", "feedforward", "lower-bandwidth")
+
+
+def ramp_for_kick(loop: JointLoop, step: float, *, share: float = 0.5) -> float:
+    """The shortest ramp [s] (whole periods) over which ``step`` [m or rad] asks at most ``share`` of the effort
+    left beside the load of ``loop``'s derivative on the error: ``d·step/ramp_s ≤ share·(limit - |load|)``;
+    0 when the loop has no such derivative or no limit."""
+    if loop.derivative != "error" or not loop.d or not math.isfinite(loop.effort_limit):
+        return 0.0
+    room = share * max(loop.effort_limit - abs(loop.load(0.0)), 1e-9 * loop.effort_limit)
+    return loop.period_s * math.ceil(loop.d * abs(step) / room / loop.period_s)
+
+
+def lowest_settling(loop: JointLoop, reference_for, *, overshoot_pct: float, settling_s: float,
+                    integral_clamp: float | None = None, widest: float = 10.0) -> tuple[float, StepDesign]:
+    """(settling time [s], design): the shortest settling time, from ``settling_s`` up to ``widest`` times it,
+    for which a design meets the spec at the move ``reference_for(settling)`` gives (bisection on the time;
+    a longer settling asks less effort). The design at ``widest`` times when none does."""
+    def attempt(ts: float) -> StepDesign:
+        return solve_step(loop, reference_for(ts), overshoot_pct=overshoot_pct, settling_s=ts,
+                          integral_clamp=integral_clamp)
+
+    high = widest * settling_s
+    found = attempt(high)
+    if not found.met:
+        return high, found
+    low = settling_s
+    for _ in range(8):
+        middle = math.sqrt(low * high)
+        trial = attempt(middle)
+        if trial.met:
+            high, found = middle, trial
+        else:
+            low = middle
+        if high / low < 1.03:
+            break
+    return high, found
+
+
+__all__ = ["INTEGRAL_TIMES", "REMEDIES", "REMEDY_NAMES", "StepDesign", "binding", "damping_for_overshoot", "lowest_settling",
+           "ramp_for_kick", "solve_step", "with_integral"]
