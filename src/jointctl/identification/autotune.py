@@ -55,8 +55,8 @@ from jointctl.identification.frequency_response import (LoopModel, _crossing, he
                                                          measure_servoed, model_plant, plant_friction, plant_of,
                                                          servo_reference)
 from jointctl.identification.plant_fit import IdentificationError
-from jointctl.identification.step_design import (INTEGRAL_TIMES, OVERSHOOT_TOLERANCE_PCT, SETTLING_TOLERANCE, StepDesign,
-                                                 lowest_settling, ramp_for_kick, solve_step, with_integral)
+from jointctl.identification.step_design import (INTEGRAL_TIMES, OVERSHOOT_TOLERANCE_PCT, SETTLING_TOLERANCE,
+                                                 StepDesign, binding, lowest_settling, ramp_for_kick, solve_step, with_integral)
 from jointctl.identification.step_loop import JointLoop, holding_effort, reference_step, step_figures
 from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Guard, Safety, SaturationMonitor, envelope_for,
                                             run_guarded, saturation_text)
@@ -245,6 +245,16 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
 
     result = design_with(tuple(remedies))
     session.close()
+    if "max-effort" in (result.get("binds") or []):
+        # The check would trip --max-effort: refused before anything moves, with what would not.
+        found = _alternatives(result, design_with, scenario_for, controller_name, plant=plant, safety=safety) \
+            if alternatives else {}
+        result["alternatives"] = found
+        raise IdentificationError(
+            f"the step of {step:g} asks {result['step_plan']['peak_effort']:.4g} on the loop designed, beyond "
+            f"--max-effort {result['effort_limit']:g}" + (f" ({result['note']})" if result.get("note") else "")
+            + "; " + (" ".join(_binding_warnings(result)[1:]) or "ask a smaller --step or a lower bandwidth"),
+            field="--max-effort", value=result["effort_limit"])
     if check_on_robot:
         result["robot"] = _check_on_robot(scenario_for, controller_name, result, loop, bandwidth_hz, plant=plant,
                                           safety=safety)
@@ -306,6 +316,10 @@ def _alternatives(result: dict, design_with, scenario_for, controller_name: str,
     for remedy in wanted:
         try:
             trial = design_with((*applied, remedy))
+            if "max-effort" in trial["binds"]:
+                found[remedy] = {"error": f"it still asks {trial['step_plan']['peak_effort']:.4g}, beyond "
+                                          f"--max-effort {trial['effort_limit']:g}"}
+                continue
             trial["robot"] = _check_on_robot(scenario_for, controller_name, trial, "position", None, plant=plant,
                                              safety=safety, sweep=False)
             trial["binds"] = _robot_binds(trial)
@@ -440,29 +454,41 @@ def _design_position(mass: float, damping: float, period_s: float, plant, robot,
     t, y = _model_step(linear_model, seconds=max(3.0, 3.0 * (settling_s or 0.0)))
     target_overshoot = 100 * overshoot_of(zeta)
     target_settling = settling_s if settling_s is not None else settling_time(t, y, 0.0, float(y[-1]))
-    if "ramp" in remedies and not ramp_s:
-        probe = JointLoop(mass, damping, period_s, controller_limit, hold, p=linear["p"], d=linear["d"],
-                          derivative=law)
-        ramp_s = ramp_for_kick(probe, step)
-
-    def reference_for(ts: float) -> np.ndarray:
-        return reference_step(start, step, hold_s=0.05, ramp_s=ramp_s, after_s=check_after_s(ts), period_s=period_s)
-
+    asked_ramp = ramp_s
     base = JointLoop(mass, damping, period_s, controller_limit, hold, p=linear["p"], d=linear["d"], derivative=law,
                      feedforward=feedforward)
     clamp = _integral_clamp(base, start, step, controller_limit) if "integral" in remedies else None
     if clamp is not None:
         base = with_integral(base, target_settling, clamp, INTEGRAL_TIMES[0])
-    moves = reference_for(target_settling)
-    first = base.step(moves)
-    close = (abs(_finite(first.overshoot_pct) - target_overshoot) <= OVERSHOOT_TOLERANCE_PCT
-             and math.isfinite(first.settling_s) and abs(first.settling_s / target_settling - 1) <= SETTLING_TOLERANCE)
-    found = StepDesign(base, first, True, ()) if close else solve_step(
-        base, moves, overshoot_pct=target_overshoot, settling_s=target_settling, integral_clamp=clamp)
+
+    def reference_for(ts: float) -> np.ndarray:
+        return reference_step(start, step, hold_s=0.05, ramp_s=ramp_s, after_s=check_after_s(ts), period_s=period_s)
+
+    for _ in range(3):
+        if "ramp" in remedies and not asked_ramp:
+            # The ramp whose kick fits the gains designed with it (a few rounds: the gains follow the ramp).
+            ramp_s = max(ramp_s, ramp_for_kick(base.with_gains(effort_limit=effort_limit), step))
+        moves = reference_for(target_settling)
+        first = base.step(moves)
+        close = (abs(_finite(first.overshoot_pct) - target_overshoot) <= OVERSHOOT_TOLERANCE_PCT
+                 and math.isfinite(first.settling_s)
+                 and abs(first.settling_s / target_settling - 1) <= SETTLING_TOLERANCE)
+        if close:
+            binds = binding(base, first, moves, target_overshoot, target_settling)
+            found = StepDesign(base, first, not binds, binds)
+        else:
+            found = solve_step(base, moves, overshoot_pct=target_overshoot, settling_s=target_settling,
+                               integral_clamp=clamp)
+        if "ramp" not in remedies or asked_ramp or ramp_for_kick(
+                found.loop.with_gains(effort_limit=effort_limit), step) <= ramp_s:
+            break
+        base = found.loop
     promised_settling = target_settling
-    if "lower-bandwidth" in remedies and not found.met and "effort" in found.binds:
+    cap = effort_limit if effort_flag == "--max-effort" else math.inf
+    if "lower-bandwidth" in remedies and (not found.met and "effort" in found.binds
+                                          or found.figures.peak_effort > cap):
         promised_settling, found = lowest_settling(base, reference_for, overshoot_pct=target_overshoot,
-                                                   settling_s=target_settling, integral_clamp=clamp)
+                                                   settling_s=target_settling, integral_clamp=clamp, effort_cap=cap)
         moves = reference_for(promised_settling)
     figures = found.figures
     gains = found.loop.gains
@@ -485,7 +511,8 @@ def _design_position(mass: float, damping: float, period_s: float, plant, robot,
         notes.append(f"settling relaxed from {target_settling:.3g} s to {promised_settling:.3g} s: the most the "
                      f"{effort_flag} allows at this step (--remedy lower-bandwidth)")
     return {"derivative": law, "feedforward": ["gravity"] if feedforward else [], "ramp_s": ramp_s,
-            "reference": start, "model_rest": found.loop.rest(start)[0], "check_step": step, **({"note": "; ".join(notes)} if notes else {}),
+            "reference": start, "model_rest": found.loop.rest(start)[0], "model_integral": found.loop.rest(start)[1],
+            "check_step": step, **({"note": "; ".join(notes)} if notes else {}),
             "step_plan": step_plan, "remedies": list(remedies), "binds": binds,
             "spec": {"bandwidth_hz": bandwidth_hz, "zeta": zeta, "overshoot_pct": target_overshoot,
                      "settling_s": settling_s, "step_settling_s": promised_settling},
@@ -741,12 +768,12 @@ def _check_on_robot(scenario_for, controller_name: str, result: dict, loop: str,
     scenario = scenario_for([*_overrides(controller_name, result), *_rest_override(result)])
     session = Session(scenario)
     controller = session.manager.controller(controller_name)
-    gains = result["gains"]
-    # An integral is charged before the step (ten of its time constants p/i), as on a robot that held its pose.
-    hold_s = max(1.0, 10 * gains["p"] / gains["i"]) if gains.get("i") else 1.0
+    if result.get("model_integral"):
+        # As on a robot that has held its pose: the integral holds the load it carries there.
+        controller.pid.i_state = float(result["model_integral"])
     step = result["check_step"]
     figures = _step(session, controller.joint, controller.set_reference, loop, step, safety=safety,
-                    effort_limit=controller.effort_limit, hold_s=hold_s,
+                    effort_limit=controller.effort_limit,
                     after_s=check_after_s(result["spec"].get("step_settling_s") or 0.0),
                     reference=result.get("reference", controller.reference_input[0]) if loop == "position" else None,
                     ramp_s=result.get("ramp_s") or 0.0)
@@ -874,8 +901,14 @@ def _write(out_dir, file_name: str, document: dict, controller_name: str, result
     found = False
     for namespace in tuned.values():
         if isinstance(namespace, dict) and controller_name in namespace:
-            pid = namespace[controller_name].setdefault("pid", {})
-            pid.update({k: round(v, 6) for k, v in result["gains"].items()})
+            entry = namespace[controller_name]
+            pid = entry.setdefault("pid", {})
+            pid.update({k: v if isinstance(v, bool) else round(v, 6) for k, v in result["gains"].items()})
+            # What a remedy changed besides the gains: the derivative law and the gravity feed-forward.
+            if result.get("derivative") == "measurement":
+                entry["derivative"] = "measurement"
+            if "gravity" in (result.get("feedforward") or ()):
+                entry.setdefault("feedforward", {})["gravity"] = True
             found = True
     if not found:
         raise ConfigError("the controller is not in its file", source=file_name, field=controller_name)

@@ -101,10 +101,11 @@ class JointLoop:
         held = expm(np.array([[0.0, 1.0, 0.0], [0.0, -b / m, 1.0 / m], [0.0, 0.0, 0.0]]) * h)
         return (held[0, 0], held[0, 1], held[1, 0], held[1, 1], held[0, 2], held[1, 2])
 
-    def run(self, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def run(self, reference: np.ndarray, *, until_peak: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position, velocity, commanded effort) at each cycle of ``reference`` (one value a period [m or
         rad]), from rest holding ``reference[0]`` (:meth:`rest`). Positions are those measured at the start of
-        each cycle, before its command."""
+        each cycle, before its command. ``until_peak``: stop at the first cycle, once the reference has come to
+        its last value, whose velocity no longer moves the joint the way of the move (its first peak)."""
         a00, a01, a10, a11, b0, b1 = self._plant()
         h, p, i, d = self.period_s, self.p, self.i, self.d
         limit, load = self.effort_limit, self.load
@@ -116,7 +117,14 @@ class JointLoop:
         e_last = float(r[0]) - q
         n = r.size
         qs, vs, us = np.empty(n), np.empty(n), np.empty(n)
+        direction = 1.0 if r[-1] >= r[0] else -1.0
+        arrived = n
+        if until_peak:
+            away = np.nonzero(r != r[-1])[0]
+            arrived = int(away[-1]) + 1 if away.size else 0
         for k in range(n):
+            if k > arrived and v * direction <= 0.0:
+                return qs[:k], vs[:k], us[:k]
             e = r[k] - q
             rate = (e - e_last) / h if on_error else -v
             e_last = e
