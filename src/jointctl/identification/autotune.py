@@ -241,7 +241,7 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
         return tune(controller_name, joint, loop, period_s, plant, robot, pose, gravity, controller.effort_limit,
                     {"p": gains.p, "i": gains.i, "d": gains.d}, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step,
                     settling_s=settling_s, derivative=law, safety=safety, gravity_m_s2=scenario.gravity_m_s2,
-                    ramp_s=ramp_s or 0.0, reference=reference, remedies=remedy_set)
+                    ramp_s=ramp_s or 0.0, reference=reference, remedies=remedy_set, integrator="euler")
 
     result = design_with(tuple(remedies))
     session.close()
@@ -371,7 +371,7 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
          gravity: float | None, effort_limit: float, previous_gains: dict, *, bandwidth_hz: float, zeta: float,
          step: float, settling_s: float | None = None, derivative: str = "error", safety: Safety | None = None,
          gravity_m_s2=(0.0, 0.0, -9.81), ramp_s: float = 0.0, reference: float | None = None,
-         remedies: tuple[str, ...] = ()) -> dict:
+         remedies: tuple[str, ...] = (), integrator: str = "hold") -> dict:
     """Design the gains for the spec and predict them on the models (no robot involved): the plant from
     ``plant`` (an identification's metrics, its ``gravity_load_n`` the load) or else ``robot``'s model at
     ``pose`` with ``gravity`` [N or N·m, magnitude] as the load. ``settling_s`` is recorded in the spec when
@@ -382,7 +382,9 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     A position loop is designed for the move that will run (:func:`_design_position`): a step of ``step``
     from the ``reference`` it holds (default: where the joint is), along a ramp of ``ramp_s`` [s], on the
     loop as it runs (the law, the effort clamp, the gravity load over the move); ``remedies`` (of
-    :data:`~jointctl.identification.step_design.REMEDY_NAMES`) change the loop designed. A velocity loop is
+    :data:`~jointctl.identification.step_design.REMEDY_NAMES`) change the loop designed; ``integrator`` is how
+    the joint moves over a period (:class:`~jointctl.identification.step_loop.JointLoop`: "euler" for the
+    simulated robot, "hold" for a real one). A velocity loop is
     refused when a step of ``step`` would exceed ``effort_limit``, naming the bandwidth it allows."""
     safety = safety or DEFAULT
     user_effort = safety.limits.max_effort
@@ -403,7 +405,8 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
         return {**common, **_design_position(
             mass, damping, period_s, plant, robot, joint, pose, effort_limit, effort_flag,
             bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s, derivative=derivative,
-            safety=safety, gravity_m_s2=gravity_m_s2, ramp_s=ramp_s, reference=reference, remedies=remedies)}
+            safety=safety, gravity_m_s2=gravity_m_s2, ramp_s=ramp_s, reference=reference, remedies=remedies,
+            integrator=integrator)}
     gains = design(mass, damping, loop=loop, bandwidth_hz=bandwidth_hz, zeta=zeta, period_s=period_s)
     need = gains["p"] * step + gravity
     if need > effort_limit:
@@ -433,7 +436,7 @@ def _hold_profile(plant: dict | None, robot, joint: str, pose: dict, gravity_m_s
 def _design_position(mass: float, damping: float, period_s: float, plant, robot, joint: str, pose: dict,
                      effort_limit: float, effort_flag: str, *, bandwidth_hz: float, zeta: float, step: float,
                      settling_s: float | None, derivative: str, safety: Safety, gravity_m_s2, ramp_s: float,
-                     reference: float | None, remedies: tuple[str, ...]) -> dict:
+                     reference: float | None, remedies: tuple[str, ...], integrator: str = "hold") -> dict:
     """A position loop's gains for the move that will run (see :func:`tune` and
     :mod:`jointctl.identification.step_design`): the linear design for ``zeta`` and ``bandwidth_hz`` first;
     its step overshoot (``exp(-πζ/√(1-ζ²))``) and settling time (``settling_s``, else the linear loop's) are
@@ -456,7 +459,7 @@ def _design_position(mass: float, damping: float, period_s: float, plant, robot,
     target_settling = settling_s if settling_s is not None else settling_time(t, y, 0.0, float(y[-1]))
     asked_ramp = ramp_s
     base = JointLoop(mass, damping, period_s, controller_limit, hold, p=linear["p"], d=linear["d"], derivative=law,
-                     feedforward=feedforward)
+                     feedforward=feedforward, integrator=integrator)
     clamp = _integral_clamp(base, start, step, controller_limit) if "integral" in remedies else None
     if clamp is not None:
         base = with_integral(base, target_settling, clamp, INTEGRAL_TIMES[0])

@@ -27,7 +27,7 @@ import numpy as np
 from jointctl.identification.step_loop import SETTLING_BAND, JointLoop, StepFigures
 
 #: How close the search brings the overshoot [percentage points] and the settling time [share].
-OVERSHOOT_TOLERANCE_PCT = 0.3
+OVERSHOOT_TOLERANCE_PCT = 0.1
 SETTLING_TOLERANCE = 0.03
 #: The most cycles the saturation may take of the move before the effort counts as binding.
 SATURATION_SHARE = 0.01
@@ -128,6 +128,7 @@ def _solve(loop: JointLoop, reference: np.ndarray, overshoot_pct: float, settlin
            integral: tuple[float, float] | None, iterations: int) -> StepDesign:
     best: tuple[float, JointLoop, StepFigures] | None = None
     p = loop.p
+    previous = None
     for _ in range(iterations):
         trial = loop.with_gains(p=p)
         if integral is not None:
@@ -140,6 +141,9 @@ def _solve(loop: JointLoop, reference: np.ndarray, overshoot_pct: float, settlin
             best = (miss, trial, figures)
         if miss < SETTLING_TOLERANCE:
             break
+        if previous is not None and settling > settling_s and settling > 0.98 * previous:
+            break  # a stiffer loop settles no sooner: the effort limit sets the pace
+        previous = settling if settling > settling_s else None
         # The time scale goes as 1/√p: scale p by the square of the settling's ratio (limited per step).
         p *= min(16.0, max(1 / 16.0, (settling / settling_s) ** 2))
     _, found, figures = best

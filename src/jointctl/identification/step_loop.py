@@ -45,7 +45,10 @@ class JointLoop:
     ``period_s`` the control period [s], ``effort_limit`` [N or N·m] (inf: none), ``hold`` the effort [N or
     N·m] holding the joint against gravity at a position [m or rad] (None: no load); the gains ``p`` [N/m or N·m/rad], ``i`` [N/(m·s) or N·m/(rad·s)], ``d`` [N·s/m or N·m·s/rad], the integral's
     clamp ``i_clamp`` [N or N·m] (the integral term stays within ±``i_clamp``; inf: none) and ``antiwindup``;
-    ``derivative`` "error" or "measurement"; ``feedforward`` whether the model's gravity effort is added."""
+    ``derivative`` "error" or "measurement"; ``feedforward`` whether the model's gravity effort is added;
+    ``integrator`` how the plant moves over a period: "hold" (exactly, the effort held: a real joint) or
+    "euler" (as the simulated robot does: MuJoCo's semi-implicit Euler, damping implicit, ``v⁺ = (v +
+    h·f/m)/(1 + h·b/m)``, ``q⁺ = q + h·v⁺``; ahead of the exact motion by about ``h·v/2``)."""
 
     mass: float
     damping: float
@@ -59,6 +62,7 @@ class JointLoop:
     antiwindup: bool = False
     derivative: str = "error"
     feedforward: bool = False
+    integrator: str = "hold"
 
     def with_gains(self, **gains) -> JointLoop:
         """This loop with other gains (``p``, ``i``, ``d``, ``i_clamp``, ``antiwindup``, ``derivative``,
@@ -98,6 +102,9 @@ class JointLoop:
         from scipy.linalg import expm
 
         m, b, h = self.mass, self.damping, self.period_s
+        if self.integrator == "euler":
+            c = 1.0 / (1.0 + h * b / m)
+            return (1.0, h * c, 0.0, c, h * h * c / m, h * c / m)
         held = expm(np.array([[0.0, 1.0, 0.0], [0.0, -b / m, 1.0 / m], [0.0, 0.0, 0.0]]) * h)
         return (held[0, 0], held[0, 1], held[1, 0], held[1, 1], held[0, 2], held[1, 2])
 
