@@ -339,3 +339,14 @@ def test_late_cycles_and_cycles_are_counted_over_the_runners_pacing_clocks(tuner
     for k in range(3):
         second.wait_for(k * 1e-3)
     assert second.cycles == 503
+
+
+def test_a_step_still_ringing_has_no_final_figures_yet_and_says_why(tuner):
+    # 0.4 s after the step (ζωn = 4.95/s) the loop still rings with 0.2·exp(-4.95·0.36)/0.97 = 35 mm where the
+    # record's last tenth begins, beyond the 4 mm band (2 % of the 0.2 m step).
+    ask(tuner, type="source", controller=POSITION, source={"type": "step", "from": -0.5, "to": -0.3, "at": 1.0})
+    run(tuner, 1.4)
+    m = tuner.measurement()
+    assert m["values"]["overshoot_pct"] is None and m["values"]["steady_state_error"] is None
+    assert m["note"].startswith("not settled")
+    assert m["values"]["natural_frequency_rad_s"] > 0
