@@ -133,6 +133,8 @@ def _report_section(scenario: Scenario, metrics: dict[str, Any], folder: Path, r
 
 
 def _fmt(value: float) -> str:
+    if isinstance(value, bool):  # a flag (moving_at_step)
+        return "true" if value else "false"
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "n/a"
     return f"{value:.4g}"
