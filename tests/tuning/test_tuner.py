@@ -350,3 +350,13 @@ def test_a_step_still_ringing_has_no_final_figures_yet_and_says_why(tuner):
     assert m["values"]["overshoot_pct"] is None and m["values"]["steady_state_error"] is None
     assert m["note"].startswith("not settled")
     assert m["values"]["natural_frequency_rad_s"] > 0
+
+
+def test_a_page_source_outside_the_joints_range_is_refused_not_clamped(tuner):
+    # joint1's range is [-1, 0] m: a step to 0.5 m would be clamped to 0 by the controller.
+    with pytest.raises(ConfigError) as caught:
+        ask(tuner, type="source", controller=POSITION, source={"type": "step", "from": -0.5, "to": 0.5, "at": 0.1})
+    assert caught.value.field == "source.to" and caught.value.value == 0.5
+    assert "joint1's range [-1, 0] m" in str(caught.value)
+    run(tuner, 0.2)
+    assert tuner.manager.controller(POSITION).clamped_cycles == 0
