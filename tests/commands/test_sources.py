@@ -280,3 +280,17 @@ def test_factory_expression_error_names_the_field() -> None:
     assert info.value.field == "cmd.expression"
     assert info.value.source == "s.yaml"
     assert str(info.value).startswith("s.yaml: cmd.expression: attribute access is not allowed at column 1")
+
+
+def test_extremes_bound_every_value_a_source_sends() -> None:
+    # What a controller's limits are checked against before the run: each bound with the key that sets it.
+    assert ConstantSource(-0.3).extremes() == (("value", -0.3),)
+    assert StepSource(-0.2, -0.5, 0.5).extremes() == (("from", -0.2), ("to", -0.5))
+    sine = SineSource(-0.1, 3.0, offset=-0.5)  # a negative amplitude is the same crests, half a period later
+    assert sine.extremes() == (("offset", -0.5), ("amplitude", pytest.approx(-0.4)), ("amplitude", -0.6))
+    sent = [sine.sample(k / 1000) for k in range(1000)]
+    assert -0.6 <= min(sent) and max(sent) <= -0.4
+    velocity = SineSource(0.1, 3.0, derivative=True)
+    assert velocity.extremes() == (("amplitude", pytest.approx(2 * math.pi * 0.3)),
+                                   ("amplitude", pytest.approx(-2 * math.pi * 0.3)))
+    assert ExpressionSource("sin(t)").extremes() == ()  # known only as it runs

@@ -216,8 +216,12 @@ def test_step_result_is_frozen_and_json_ready():
         "fit_window_s",
         "fit_rms_error",
         "fit_note",
+        "moving_at_step",
+        "motion_at_step",
+        "not_settled",
     }
-    assert d.pop("fit_note") is None  # fitted
+    assert d.pop("fit_note") is None and d.pop("not_settled") is None  # fitted, settled
+    assert d.pop("moving_at_step") is False
     assert all(type(v) is float for v in d.values())
     assert json.loads(json.dumps(d, allow_nan=False)) == d
 
@@ -410,3 +414,85 @@ def test_first_order_frequency_response():
     assert ratio[0] == pytest.approx(kv / (kv + b)) and lag[0] == 0.0
     with pytest.raises(ValueError, match="gain"):
         first_order_frequency_response(m, 0.0, b, 1.0)
+
+
+# --------------------------------------------------------------------------- settled, and moving at the step
+
+
+def envelope(amplitude: float, wn: float, zeta: float, tau: float) -> float:
+    """Largest |y - y_final| [m] the free second-order motion x(0) = amplitude, x'(0) = 0 can still
+    reach ``tau`` [s] later: amplitude·exp(-ζωn·tau)/√(1 - ζ²)."""
+    return amplitude * math.exp(-zeta * wn * tau) / math.sqrt(1 - zeta**2)
+
+
+def test_a_response_still_ringing_in_its_last_tenth_has_no_steady_state():
+    # ζ 0.05, ωn 10: 3 s of record; the last 10 % starts 2.2 s after the step, where the envelope is
+    # still 0.3·exp(-1.1)/√(1 - ζ²) = 0.10 m: 16 times the ±2 % band (0.006 m).
+    wn, zeta = 10.0, 0.05
+    t, command, position = record(wn, zeta, duration=3.0)
+    tail_start = t[-int(math.ceil(0.1 * t.size))]
+    assert envelope(0.3, wn, zeta, tail_start - 0.5) > 10 * 0.02 * 0.3
+    result = step_response(t, command, position, step_time_s=0.5)
+    for claim in ("final_value", "steady_state_error", "overshoot_pct", "rise_time_s", "settling_time_s"):
+        assert getattr(result, claim) is None, claim
+    assert "not settled" in result.not_settled and "2 %" in result.not_settled
+    # The fit needs no final value: it still recovers the loop.
+    assert result.natural_frequency_rad_s == pytest.approx(wn, rel=5e-3)
+    assert result.damping_ratio == pytest.approx(zeta, rel=5e-3)
+    assert result.initial_value == pytest.approx(-0.19)
+    assert json.loads(json.dumps(result.as_dict(), allow_nan=False))["final_value"] is None
+
+
+def test_a_response_that_leaves_the_band_inside_its_last_tenth_has_not_settled():
+    # The chapter's loop, the record cut so that the 2 % settling time falls inside its last 10 %:
+    # the final value would be a mean over samples outside the band.
+    wn, zeta = 19.9, 0.249
+    settle, _ = analytic_settling_and_rise(wn, zeta)
+    duration = (0.5 + settle) / 0.95  # the last tenth starts 0.05·duration before the settling time
+    t, command, position = record(wn, zeta, duration=duration)
+    assert step_response(t, command, position, step_time_s=0.5).not_settled is not None
+    t, command, position = record(wn, zeta)
+    settled = step_response(t, command, position, step_time_s=0.5)
+    assert settled.not_settled is None and settled.final_value == pytest.approx(-0.49, abs=1e-8)
+
+
+def free_motion_then_step(wn: float, zeta: float, sag: float, step_time: float, duration: float = 4.0):
+    """The chapter's loop released at t = 0 ``sag`` [m] above its rest at -0.2 m (as gravity leaves
+    a P loop started where it stands), its command stepping to -0.5 m at ``step_time`` [s]; the
+    linear loop superposes the free motion and the step."""
+    t = np.arange(int(round(duration / DT))) * DT
+    command = np.where(t < step_time, -0.2, -0.5)
+    free = second_order_step(t, -0.2 + sag, -0.2, wn, zeta)
+    tau = np.clip(t - step_time, 0.0, None)
+    stepped = second_order_step(tau, 0.0, -0.3, wn, zeta)
+    return t, command, np.where(t < step_time, free, free + stepped)
+
+
+@pytest.mark.parametrize("step_time, moving", [(0.1, True), (0.5, False)])
+def test_a_response_still_moving_when_its_step_comes_is_flagged(step_time, moving):
+    # Released 24.8 mm from rest (m·g/Kp of the 1-DOF robot), the loop's free motion has the
+    # amplitude sag·exp(-ζωn·t)/√(1 - ζ²) at t: 15.6 mm at 0.1 s (beyond the ±2 % band of the
+    # 0.3 m step, 6 mm), 2.1 mm at 0.5 s (within it).
+    wn, zeta, sag = 19.9, 0.249, 0.0248
+    t, command, position = free_motion_then_step(wn, zeta, sag, step_time)
+    result = step_response(t, command, position, step_time_s=step_time)
+    assert result.motion_at_step == pytest.approx(envelope(sag, wn, zeta, step_time), rel=1e-3)
+    assert result.moving_at_step is moving
+    assert (envelope(sag, wn, zeta, step_time) > 0.02 * 0.3) is moving
+
+
+def test_a_first_order_drift_at_the_step_is_motion_too():
+    # No oscillation after the step (a first-order loop, time constant 0.1 s): the motion before it
+    # is a decay with the time constant the step's 10-90 % rise gives (rise / ln 9).
+    t = np.arange(3000) * DT
+    command = np.where(t < 0.5, -0.2, -0.5)
+    tau_c = 0.1
+    drift = 0.05 * np.exp(-t / tau_c)  # 0.05·exp(-5) = 0.34 mm left at the step
+    position = -0.2 + drift + np.where(t < 0.5, 0.0, -0.3 * (1 - np.exp(-np.clip(t - 0.5, 0, None) / tau_c)))
+    result = step_response(t, command, position, step_time_s=0.5)
+    assert math.isnan(result.damping_ratio)
+    assert result.motion_at_step == pytest.approx(0.05 * math.exp(-0.5 / tau_c), rel=0.01)
+    assert result.moving_at_step is False
+    early = step_response(t, np.where(t < 0.1, -0.2, -0.5), -0.2 + drift + np.where(
+        t < 0.1, 0.0, -0.3 * (1 - np.exp(-np.clip(t - 0.1, 0, None) / tau_c))), step_time_s=0.1)
+    assert early.motion_at_step == pytest.approx(0.05 * math.exp(-1.0), rel=0.01) and early.moving_at_step

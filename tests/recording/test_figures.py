@@ -3,6 +3,7 @@ from the SVG (text kept as text, markers found by their ids, positions read off 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -206,6 +207,16 @@ def test_a_step_figure_marks_band_overshoot_rise_settling_final_value_and_theory
     assert axes.x_value(xs.min()) == pytest.approx(0.5, abs=1e-3)
     assert axes.x_value(xs.max()) == pytest.approx(t[-1], abs=1e-3)
     assert sorted(axes.y_value(y) for y in (ys.min(), ys.max())) == pytest.approx([-0.506, -0.494], abs=1e-4)
+
+
+def test_a_step_that_did_not_settle_marks_no_band_overshoot_or_rise_and_says_so(tmp_path, trace):
+    t, command, position = trace
+    marks = dataclasses.replace(_step_marks(t, position, None), final_value=None, overshoot_pct=None,
+                                rise_start_s=None, rise_end_s=None, settling_time_s=None)
+    png = plot_step(tmp_path / "step.png", t, command, position, title="step", unit="m", marks=marks)
+    svg = SvgFigure(png.with_suffix(".svg"))
+    assert svg.axes[0].legend == ["reference", "position", "not settled: no final value"]
+    assert not {"step-settling-band", "step-overshoot", "step-rise-time", "step-settling-time"} & svg.ids()
 
 
 def test_a_step_without_theory_or_expectation_leaves_them_out(tmp_path, trace):

@@ -112,3 +112,26 @@ def test_without_a_spec_the_first_metrics_are_drawn_and_nothing_is_judged(result
     assert "final_value_vs_payload_kg.png" in written and not any(n.startswith("heatmap") for n in written)
     summary = result.summary()
     assert summary["passed"] is None and summary["spec"] is None
+
+
+def test_a_flag_is_true_or_false_in_the_table_and_its_share_in_the_summary(result, tmp_path):
+    for r, moving in zip(result.rows, (False, True, True, None)):
+        if r.error is None:
+            r.metrics["moving_at_step"] = moving
+    result.nominal.metrics["moving_at_step"] = False
+    result.write(tmp_path)
+    with (tmp_path / "results.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert [r["moving_at_step"] for r in rows] == ["false", "true", "true", ""]
+    moving = json.loads((tmp_path / "summary.json").read_text())["metrics"]["moving_at_step"]
+    assert moving["measured"] == 3 and moving["mean"] == pytest.approx(2 / 3)  # the share of runs moving
+    assert moving["worst"]["value"] is True and moving["worst"]["index"] == 1
+
+
+def test_a_run_that_did_not_settle_is_drawn_to_its_commanded_step(result, tmp_path):
+    from jointctl.sweep import figures
+
+    unsettled = result.rows[2]
+    unsettled.metrics["final_value"] = None
+    y = figures._normalised(unsettled.trace["position"], unsettled.metrics, unsettled.trace["reference"])
+    assert y is not None and y[-1] == pytest.approx(1.0, abs=0.05)  # the trace's -0.5 end over the 0.3 m step

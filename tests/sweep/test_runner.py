@@ -20,7 +20,7 @@ def test_a_row_holds_the_analysis_numbers_and_the_analysed_joints_response():
     assert row.error is None and row.index == 3 and row.values == {"payload_kg": 1.0}
     assert {"natural_frequency_rad_s", "damping_ratio", "overshoot_pct", "settling_time_s"} <= set(row.metrics)
     assert not any(name.split(".")[0] in NOT_ROW_METRICS for name in row.metrics)
-    assert all(v is None or isinstance(v, float) for v in row.metrics.values())
+    assert all(v is None or isinstance(v, (float, bool)) for v in row.metrics.values())
     trace = row.trace
     assert trace["joint"] == "joint1" and len(trace["time_s"]) <= 400
     assert trace["time_s"][-1] == pytest.approx(1.5, abs=0.01)
@@ -28,10 +28,11 @@ def test_a_row_holds_the_analysis_numbers_and_the_analysed_joints_response():
     assert row.run_s > 0 and row.passed is None
 
 
-def test_numbers_flatten_and_keep_only_numbers():
+def test_numbers_flatten_and_keep_only_numbers_and_flags():
     flat = numbers({"a": 1, "b": {"c": 2.5, "d": "text", "e": [1, 2]}, "f": math.inf, "g": None, "h": True,
-                    "expected": {"a": 3.0}, "real_time_factor": 150.0, "i": np.float32(0.5)})
-    assert flat == {"a": 1.0, "b.c": 2.5, "f": None, "g": None, "i": 0.5}
+                    "expected": {"a": 3.0}, "real_time_factor": 150.0, "i": np.float32(0.5), "j": np.bool_(False)})
+    assert flat == {"a": 1.0, "b.c": 2.5, "f": None, "g": None, "h": True, "i": 0.5, "j": False}
+    assert type(flat["h"]) is bool and type(flat["j"]) is bool
 
 
 @pytest.mark.parametrize("values, kind, says", [
@@ -95,3 +96,15 @@ def test_the_step_controllers_gains_are_what_the_theory_assumes():
     config = yaml.safe_load((robots_dir() / "one_dof" / "config" / "one_dof_pos_ctl_params.yaml").read_text())
     pid = config["one_DOF_robot"]["joint1_position_controller"]["pid"]
     assert (pid["p"], pid["d"]) == (KP, 0.0)
+
+
+@pytest.mark.parametrize("payload_kg", [0.0, 5.0])
+def test_a_row_says_whether_the_run_was_still_moving_at_its_step(payload_kg):
+    # The loop starts holding -0.2 m and drops m·g/Kp under gravity, ringing with (m·g/Kp)·exp(-ζωn·t)/√(1 - ζ²):
+    # at the step (0.5 s) 2.1 mm nominally, inside the 6 mm band (2 % of the 0.3 m step); 98 mm with 5 kg.
+    m = M_KG + payload_kg
+    zeta = B / (2 * math.sqrt(KP * m))
+    left = m * 9.81 / KP * math.exp(-B / (2 * m) * 0.5) / math.sqrt(1 - zeta**2)
+    row = evaluate(RunTask(0, "one_dof_step", {"payload_kg": payload_kg}, overrides=("duration_s=1",)))
+    assert row.error is None, row.error
+    assert row.metrics["moving_at_step"] is (left > 0.02 * 0.3)

@@ -339,3 +339,24 @@ def test_late_cycles_and_cycles_are_counted_over_the_runners_pacing_clocks(tuner
     for k in range(3):
         second.wait_for(k * 1e-3)
     assert second.cycles == 503
+
+
+def test_a_step_still_ringing_has_no_final_figures_yet_and_says_why(tuner):
+    # 0.4 s after the step (ζωn = 4.95/s) the loop still rings with 0.2·exp(-4.95·0.36)/0.97 = 35 mm where the
+    # record's last tenth begins, beyond the 4 mm band (2 % of the 0.2 m step).
+    ask(tuner, type="source", controller=POSITION, source={"type": "step", "from": -0.5, "to": -0.3, "at": 1.0})
+    run(tuner, 1.4)
+    m = tuner.measurement()
+    assert m["values"]["overshoot_pct"] is None and m["values"]["steady_state_error"] is None
+    assert m["note"].startswith("not settled")
+    assert m["values"]["natural_frequency_rad_s"] > 0
+
+
+def test_a_page_source_outside_the_joints_range_is_refused_not_clamped(tuner):
+    # joint1's range is [-1, 0] m: a step to 0.5 m would be clamped to 0 by the controller.
+    with pytest.raises(ConfigError) as caught:
+        ask(tuner, type="source", controller=POSITION, source={"type": "step", "from": -0.5, "to": 0.5, "at": 0.1})
+    assert caught.value.field == "source.to" and caught.value.value == 0.5
+    assert "joint1's range [-1, 0] m" in str(caught.value)
+    run(tuner, 0.2)
+    assert tuner.manager.controller(POSITION).clamped_cycles == 0

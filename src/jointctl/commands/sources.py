@@ -97,6 +97,11 @@ class CommandSource:
     def reset(self) -> None:
         """Forget cached messages and error counts, as before the first sample."""
 
+    def extremes(self) -> tuple[tuple[str, float], ...]:
+        """The values that bound every value the source sends, each with the key of its mapping that sets it
+        (``("to", -0.5)``); empty when they are known only as it runs (an expression)."""
+        return ()
+
     @property
     def rejected_samples(self) -> int:
         """Messages whose evaluation failed and were replaced by the last good value."""
@@ -119,6 +124,9 @@ class ConstantSource(CommandSource):
 
     def sample(self, t: float) -> float:
         return self.value
+
+    def extremes(self) -> tuple[tuple[str, float], ...]:
+        return (("value", self.value),)
 
 
 @dataclass(frozen=True)
@@ -145,6 +153,9 @@ class StepSource(CommandSource):
         if t >= self.at_s + self.ramp_s:
             return self.final
         return self.initial + (self.final - self.initial) * (t - self.at_s) / self.ramp_s
+
+    def extremes(self) -> tuple[tuple[str, float], ...]:
+        return (("from", self.initial), ("to", self.final))
 
 
 @dataclass(frozen=True)
@@ -189,6 +200,15 @@ class SineSource(CommandSource):
 
     def reset(self) -> None:
         self._hold.clear()
+
+    def extremes(self) -> tuple[tuple[str, float], ...]:
+        """The offset and the crests offset ± |amplitude| (a velocity sine: ± 2π·f·|amplitude|), which the
+        messages reach to within their sampling."""
+        if self.derivative:
+            crest = 2.0 * math.pi * self.frequency_hz * abs(self.amplitude)
+            return (("amplitude", crest), ("amplitude", -crest))
+        return (("offset", self.offset), ("amplitude", self.offset + abs(self.amplitude)),
+                ("amplitude", self.offset - abs(self.amplitude)))
 
 
 class ExpressionSource(CommandSource):

@@ -12,7 +12,9 @@ refuses a value that is not a finite number with :class:`~jointctl.errors.Invali
 (the previous reference stays), refuses while the controller is chained (its upstream owns
 the reference), and writes the same slots, read by the next cycle. Position references are
 clamped to the joint's range and velocity references to its velocity limit, as ros_control
-does; the clamped value is the reference in use (``reference``, the trace's column).
+does; the clamped value is the reference in use (``reference``, the trace's column). Clamping is
+counted, not silent: ``clamped_cycles`` and the reference furthest outside, ``clamped_furthest``
+(:func:`jointctl.commands.limits.clamp_warning` words them).
 """
 
 from __future__ import annotations
@@ -40,6 +42,19 @@ class _EffortJointController(Controller):
             {}, source=params.source, field=params.path("pid"))
         params.reject_unknown({"type"})
         self.pid: Pid | None = None
+        #: Cycles whose reference was outside the joint's limits and clamped, and the reference furthest outside
+        #: (None before the first).
+        self.clamped_cycles = 0
+        self.clamped_furthest: float | None = None
+
+    def _clamp(self, value: float, low: float, high: float) -> float:
+        """``value`` clamped to [low, high], counted (the rare path of a reference outside the limits)."""
+        self.clamped_cycles += 1
+        bound = low if value < low else high
+        furthest = self.clamped_furthest
+        if furthest is None or abs(value - bound) > abs(furthest - (low if furthest < low else high)):
+            self.clamped_furthest = value
+        return bound
 
     def claimed_interfaces(self) -> tuple[tuple[str, str], ...]:
         return ((self.joint, EFFORT),)
@@ -244,7 +259,8 @@ class JointPositionController(_EffortJointController):
         i = self.index
         position, velocity = self._positions[i], self._velocities[i]
         lower, upper = self.lower, self.upper
-        position = lower if position < lower else upper if position > upper else position
+        if position < lower or position > upper:
+            position = self._clamp(position, lower, upper)
         self.references[i] = position
         hw = self.hardware
         error = position - hw.position[i]
@@ -340,7 +356,8 @@ class JointVelocityController(_EffortJointController):
             if self.timed_out:
                 velocity = 0.0
         limit = self.velocity_limit
-        velocity = -limit if velocity < -limit else limit if velocity > limit else velocity
+        if velocity < -limit or velocity > limit:
+            velocity = self._clamp(velocity, -limit, limit)
         self.references[i] = velocity
         error = velocity - self.hardware.velocity[i]
         rate = (error - self._last_error) / period_s if self._last_valid else 0.0

@@ -2,7 +2,10 @@
 
 Every actuated joint takes effort commands (its transmission's
 EffortJointInterface); the effort reported is MuJoCo's actuator force, i.e.
-the command after the actuator's force limit. Wrenches follow the chapter's
+the command after the actuator's force limit. Commands and state are the
+joint's, as ros_control's joint-space interfaces: through a transmission's
+reduction n (SimpleTransmission) the actuator is commanded joint effort / n
+and the joint's effort is n times the actuator's. Wrenches follow the chapter's
 (Gazebo ft_sensor) convention: the force and torque the sensor link's subtree
 exerts on its parent, in the sensor link's frame, so a load resting on the
 1-DOF robot's disk reads negative force z.
@@ -95,9 +98,13 @@ class MujocoHardware(HardwareInterface):
         self._actuated = frozenset(n for n, a in zip(world.joint_names, actuated) if a)
         self._act_joint_idx = np.flatnonzero(actuated)
         self._ctrl_ids = world.actuator_ids[actuated]
+        # Each actuator's transmission reduction n: joint effort = n · actuator effort (SimpleTransmission).
+        self._reduction = np.array([world.robot.transmission_for(world.joint_names[k]).mechanical_reduction
+                                    for k in self._act_joint_idx], dtype=float)
+        geared = bool(np.any(self._reduction != 1.0))
         qpos_sl, qvel_sl = world.contiguous(world.qpos_adr), world.contiguous(world.dof_adr)
         ctrl_sl = world.contiguous(self._ctrl_ids) if actuated.all() else None
-        if qpos_sl is not None and qvel_sl is not None and ctrl_sl is not None:
+        if qpos_sl is not None and qvel_sl is not None and ctrl_sl is not None and not geared:
             # The usual case: cached numpy views, one tolist() per quantity per cycle.
             self._qpos_view, self._qvel_view = d.qpos[qpos_sl], d.qvel[qvel_sl]
             self._force_view, self._ctrl_view = d.actuator_force[ctrl_sl], d.ctrl[ctrl_sl]
@@ -139,15 +146,15 @@ class MujocoHardware(HardwareInterface):
         self.position[:] = d.qpos[self.world.qpos_adr].tolist()
         self.velocity[:] = d.qvel[self.world.dof_adr].tolist()
         effort = self.effort
-        for k, act in zip(self._act_joint_idx, self._ctrl_ids):
-            effort[k] = float(d.actuator_force[act])
+        for k, act, n in zip(self._act_joint_idx, self._ctrl_ids, self._reduction):
+            effort[k] = float(d.actuator_force[act] * n)
         if self._sensor_slots:
             self._read_sensors()
 
     def _write_indexed(self) -> None:
         ctrl, cmd = self.world.data.ctrl, self._effort_cmd
-        for k, act in zip(self._act_joint_idx, self._ctrl_ids):
-            ctrl[act] = cmd[k]
+        for k, act, n in zip(self._act_joint_idx, self._ctrl_ids, self._reduction):
+            ctrl[act] = cmd[k] / n
 
     def _read_sensors(self) -> None:
         data = self._sensordata.tolist()

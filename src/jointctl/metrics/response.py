@@ -7,7 +7,9 @@ whose :meth:`as_dict` is ready for ``json.dumps``.
 * :func:`step_response` -- natural frequency and damping ratio from a
   nonlinear least-squares fit of the underdamped second-order step response,
   plus overshoot, rise, peak and settling times and the steady-state error
-  read directly from the samples.
+  read directly from the samples (those that need a final value only when the
+  response settled), and whether the response was still moving when the step
+  came.
 * :func:`sinusoid_response` -- amplitude ratio and phase lag of a response to
   a sinusoidal reference, by linear least squares at the fundamental.
 * :func:`second_order_theory`, :func:`second_order_frequency_response`,
@@ -76,14 +78,20 @@ class _Result:
 class StepResponse(_Result):
     """Figures of merit of a step response.
 
+    **Settled.** The final value is the mean of the last 10 % of the record; it is a steady state
+    only if the response stayed within the settling band (``settle_band`` of the step about that
+    mean) over all of those samples. When it did not, the figures measured against the final
+    value -- ``final_value``, ``steady_state_error``, ``overshoot_pct``, ``rise_time_s``,
+    ``settling_time_s`` -- are None and ``not_settled`` says why; the fitted ωn and ζ need no final
+    value (the fit's own asymptote is a free parameter) and stand.
+
     Attributes:
         natural_frequency_rad_s: omega_n of the fitted second-order response [rad/s].
         damping_ratio: zeta of the fitted second-order response [-].
         overshoot_pct: peak excursion beyond ``final_value`` in the direction of
             the step, as percent of the measured step size (0 if none) [%].
         settling_time_s: time after the step from which |y - final_value| stays
-            within ``settle_band * |step size|`` [s]; ``None`` if the record ends
-            outside the band.
+            within ``settle_band * |step size|`` [s].
         steady_state_error: ``command_final - final_value`` [m, or rad for a
             revolute joint].
         rise_time_s: 10 % to 90 % rise time of the measured step [s].
@@ -94,22 +102,38 @@ class StepResponse(_Result):
         final_value: mean of the last 10 % of the record [m or rad].
         fit_window_s: length of the record after the step used by the fit [s].
         fit_rms_error: RMS residual of the fit [m or rad].
+        moving_at_step: whether ``motion_at_step`` exceeds ``settle_band`` of the
+            commanded step (the settling band's width, taken from the command: the
+            measured step carries the motion): the response had not come to rest when
+            the step came, and the step's figures carry the rest of that motion (None
+            when it could not be told).
+        motion_at_step: amplitude of the motion before the step, at the step [m or
+            rad]: the record before the step fitted, by linear least squares, with
+            a rest plus the free motion of the loop the step revealed (the fitted
+            damped oscillation; without one, a decay with the time constant of the
+            step's 10-90 % rise, rise / ln 9), over at most 8 of its time constants;
+            the oscillation's envelope (or the decay's distance from the rest) at
+            the step. None with fewer than 3 samples before the step.
     """
 
     natural_frequency_rad_s: float
     damping_ratio: float
-    overshoot_pct: float
+    overshoot_pct: float | None
     settling_time_s: float | None
-    steady_state_error: float
-    rise_time_s: float
+    steady_state_error: float | None
+    rise_time_s: float | None
     peak_time_s: float
     initial_value: float
-    final_value: float
+    final_value: float | None
     fit_window_s: float
     fit_rms_error: float
     #: Why ωn and ζ are NaN (None when they were fitted): a response that does not overshoot
     #: (an overdamped loop, or ζ above about 0.9) has no oscillation to fit.
     fit_note: str | None = None
+    moving_at_step: bool | None = None
+    motion_at_step: float | None = None
+    #: Why the figures that need a final value are None (None when the response settled).
+    not_settled: str | None = None
 
 
 @dataclass(frozen=True)
@@ -397,15 +421,27 @@ def step_response(
         level = math.copysign(band, e[i])
         frac = (e[i] - level) / (e[i] - e[i + 1])
         settling_time_s = float(tau[i] + frac * (tau[i + 1] - tau[i]))
+    not_settled = _not_settled(t[-n_tail:], y[-n_tail:] - y_final, band, settle_band)
+    read_off = {"overshoot_pct": overshoot_pct, "settling_time_s": settling_time_s,
+                "steady_state_error": c_final - y_final, "rise_time_s": t90 - t10, "final_value": y_final}
+    if not_settled is not None:
+        read_off = dict.fromkeys(read_off)
+    read_off.update(peak_time_s=peak_time_s, initial_value=y_initial, not_settled=not_settled)
+
+    def motion(basis) -> dict[str, float | bool | None]:
+        """``motion_at_step`` and ``moving_at_step`` from the loop's free motion ``basis``."""
+        amplitude = _motion_at_step(t[pre] - step_time_s, y[pre], basis)
+        limit = settle_band * abs(c_final - c_initial)
+        return {"motion_at_step": amplitude, "moving_at_step": None if amplitude is None else amplitude > limit}
 
     # Fit the damped oscillation (none to fit without an overshoot: the read-off figures stand alone).
     try:
         sigma0, omega_d0 = _initial_guess(tau, e, step_abs, direction, noise)
     except NoOscillation as exc:
-        return StepResponse(natural_frequency_rad_s=math.nan, damping_ratio=math.nan, overshoot_pct=overshoot_pct,
-                            settling_time_s=settling_time_s, steady_state_error=c_final - y_final,
-                            rise_time_s=t90 - t10, peak_time_s=peak_time_s, initial_value=y_initial,
-                            final_value=y_final, fit_window_s=0.0, fit_rms_error=math.nan, fit_note=exc.message)
+        time_constant = (t90 - t10) / math.log(9.0)
+        return StepResponse(natural_frequency_rad_s=math.nan, damping_ratio=math.nan, fit_window_s=0.0,
+                            fit_rms_error=math.nan, fit_note=exc.message, **read_off,
+                            **motion(lambda x: [np.exp(-x / time_constant)]))
     window = fit_window_s if fit_window_s is not None else _ENVELOPE_TIME_CONSTANTS / sigma0
     if window <= 0:
         raise AnalysisError("fit_window_s must be positive", value=fit_window_s)
@@ -438,19 +474,48 @@ def step_response(
         raise AnalysisError("second-order fit failed: no oscillation found")
     residual = y_w - _damped_model(tau_w, *params)
 
+    def oscillation(x: FloatArray) -> list[FloatArray]:
+        envelope = np.exp(-sigma * x)
+        return [envelope * np.cos(omega_d * x), envelope * np.sin(omega_d * x)]
+
     return StepResponse(
         natural_frequency_rad_s=wn,
         damping_ratio=sigma / wn,
-        overshoot_pct=overshoot_pct,
-        settling_time_s=settling_time_s,
-        steady_state_error=c_final - y_final,
-        rise_time_s=t90 - t10,
-        peak_time_s=peak_time_s,
-        initial_value=y_initial,
-        final_value=y_final,
         fit_window_s=float(tau_w[-1]),
         fit_rms_error=float(np.sqrt(np.mean(residual**2))),
+        **read_off,
+        **motion(oscillation),
     )
+
+
+def _not_settled(t_tail: FloatArray, e_tail: FloatArray, band: float, settle_band: float) -> str | None:
+    """Why the response has not settled (None if it has): a sample of the last 10 % of the record
+    (``t_tail`` [s], ``e_tail`` its distance from the tail's mean) lies outside the settling band
+    (``band``, ``settle_band`` of the step)."""
+    worst = int(np.argmax(np.abs(e_tail)))
+    if abs(e_tail[worst]) <= band:
+        return None
+    return (f"not settled: in the last 10 % of the record ({t_tail[0]:.4g}-{t_tail[-1]:.4g} s), whose mean would "
+            f"be the final value, the response is still {abs(e_tail[worst]):.3g} from that mean at "
+            f"{t_tail[worst]:.4g} s, outside the ±{100 * settle_band:g} % settling band (±{band:.3g}); the final "
+            "value, steady-state error, overshoot, rise and settling times are not given (a longer record "
+            "lets the response settle)")
+
+
+def _motion_at_step(tau: FloatArray, y: FloatArray, basis) -> float | None:
+    """Amplitude [signal units] at the step (``tau`` = 0) of the free motion before it: ``y`` at
+    ``tau`` < 0 [s] fitted by linear least squares with a rest plus ``basis(tau)`` (one column, a
+    decay, or two, a damped oscillation's cosine and sine), over the samples where the basis is
+    within exp(8) of its value at the step (8 of its time constants); the decay's coefficient, or
+    the oscillation's envelope. None with fewer than 3 samples."""
+    columns = basis(tau)
+    scale = np.max(np.abs(np.column_stack(columns)), axis=1)
+    keep = scale <= math.exp(_ENVELOPE_TIME_CONSTANTS)
+    if np.count_nonzero(keep) < 3:
+        return None
+    matrix = np.column_stack([np.ones(int(np.count_nonzero(keep))), *(c[keep] for c in columns)])
+    coefficients, *_ = np.linalg.lstsq(matrix, y[keep], rcond=None)
+    return float(np.hypot.reduce(coefficients[1:])) if len(columns) > 1 else float(abs(coefficients[1]))
 
 
 # --------------------------------------------------------------------------- sine

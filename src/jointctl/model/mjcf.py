@@ -8,8 +8,11 @@ loses the mass of a root fixed to the world. Here:
 - every link is a body; fixed joints and *locked* joints (lower == upper) are
   welds (a body without a joint), so the force-sensor link survives as a body;
 - contacts between the two links of every joint are excluded;
-- one motor actuator per transmission with an effort interface, its force
-  range the joint's effort limit;
+- one motor actuator per transmission with an effort interface, geared by its
+  ``mechanicalReduction`` n as ros_control's SimpleTransmission (joint effort =
+  n · actuator effort, actuator position = n · joint position), its force range
+  the joint's effort limit over |n| (the URDF's limit is the joint's); other
+  transmission types are refused;
 - every force-torque sensor becomes a site at its link's origin with MuJoCo
   ``force`` and ``torque`` sensors;
 - every limited joint's limit is a stiff stop: its solver parameters come from
@@ -286,13 +289,19 @@ class _Builder:
                 raise self.error(
                     "the MuJoCo hardware drives joints through EffortJointInterface only",
                     f"transmission[{tr.name}].hardwareInterface", ", ".join(tr.hardware_interfaces))
+            if tr.type.rsplit("/", 1)[-1] != "SimpleTransmission":
+                raise self.error("jointctl models transmission_interface/SimpleTransmission only (one actuator, "
+                                 "one joint, a mechanicalReduction)", f"transmission[{tr.name}].type", tr.type)
+            # SimpleTransmission with reduction n: joint effort = n·actuator effort, actuator position = n·joint
+            # position (MuJoCo's gear). The URDF's effort limit is the joint's; the actuator's is that over |n|.
+            n = tr.mechanical_reduction
             act = self.spec.add_actuator(name=tr.joint, target=tr.joint,
-                                         trntype=mujoco.mjtTrn.mjTRN_JOINT)
+                                         trntype=mujoco.mjtTrn.mjTRN_JOINT, gear=[n, 0, 0, 0, 0, 0])
             act.set_to_motor()
             effort = joint.limits.effort if joint.limits is not None else 0.0
             if effort > 0:
                 act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-                act.forcerange = [-effort, effort]
+                act.forcerange = [-effort / abs(n), effort / abs(n)]
 
     def add_sensors(self) -> None:
         for sensor in self.robot.sensors:

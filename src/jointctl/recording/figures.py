@@ -127,13 +127,15 @@ class StepMarks:
     ``rise_end_s``; None if not reached); ``settling_time_s`` how long after the step it entered the
     band for good (None if it never did); ``expected_final`` the theory's final value (None without
     one). ``peak_time_s``, ``rise_start_s`` and ``rise_end_s`` are times of the record [s],
-    ``settling_time_s`` a duration after the step [s]."""
+    ``settling_time_s`` a duration after the step [s]. A response that did not settle has no
+    ``final_value`` (None): no band, overshoot or rise is drawn, and the legend says it did not
+    settle."""
 
     step_time_s: float
     initial_value: float
-    final_value: float
+    final_value: float | None
     settle_band: float
-    overshoot_pct: float
+    overshoot_pct: float | None
     peak_time_s: float
     peak_value: float
     rise_start_s: float | None
@@ -520,6 +522,9 @@ def _duration(seconds: float) -> str:
 
 
 def _mark_step(ax: Axes, scale: DisplayScale, marks: StepMarks, end_s: float) -> None:
+    if marks.final_value is None:  # no steady state: nothing to draw a band, an overshoot or a rise about
+        ax.plot([], [], linestyle="none", label="not settled: no final value", gid="step-not-settled")
+        return
     step = marks.final_value - marks.initial_value
     half = abs(marks.settle_band * step)
     band = ax.fill_between([marks.step_time_s, max(end_s, marks.step_time_s)],
@@ -527,7 +532,7 @@ def _mark_step(ax: Axes, scale: DisplayScale, marks: StepMarks, end_s: float) ->
                            color="tab:orange", alpha=0.25, linewidth=0,
                            label=f"±{100 * marks.settle_band:g} % settling band")
     band.set_gid("step-settling-band")
-    if marks.overshoot_pct > 0:
+    if marks.overshoot_pct is not None and marks.overshoot_pct > 0:
         peak = ax.plot([marks.peak_time_s], [scale(marks.peak_value)], marker="v", color="tab:red",
                        linestyle="none", label=f"overshoot {marks.overshoot_pct:.3g} %")[0]
         peak.set_gid("step-overshoot")

@@ -7,6 +7,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from jointctl.commands.limits import clamp_warning
 from jointctl.scenario.analyses import check_analysis
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import Scenario, builtin_scenarios, load_scenario
@@ -70,6 +71,10 @@ def run_scenario(
     if capture is not None:
         metrics["video"] = {**write_video(capture.frames, out, video, camera), "frames": len(capture.frames),
                             "fps": video.fps}
+    clamped = [w for w in (clamp_warning(c, session.robot, session.loop.period_s) for c in session.manager.loaded())
+               if w is not None]
+    if clamped:  # references the controllers clamped to their joints' limits as the run went
+        metrics["warnings"] = [*metrics.get("warnings", []), *clamped]
     rejected = {n: s.rejected_samples for n, s in session.sources.items() if s.rejected_samples}
     if rejected:
         metrics["rejected_command_samples"] = rejected
@@ -133,6 +138,8 @@ def _report_section(scenario: Scenario, metrics: dict[str, Any], folder: Path, r
 
 
 def _fmt(value: float) -> str:
+    if isinstance(value, bool):  # a flag (moving_at_step)
+        return "true" if value else "false"
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "n/a"
     return f"{value:.4g}"

@@ -37,6 +37,7 @@ from jointctl.scenario.spec import Scenario
 from jointctl.sim.mjcf_builder import WorldSettings
 from jointctl.hardware.interface import HardwareInterface, SimulationDoor
 from jointctl.sim.world import MujocoWorld
+from jointctl.commands.limits import check_within_limits
 from jointctl.commands.sources import CommandSource, command_source_from_config
 from jointctl.recording.mcap_record import MCAP_FILE, McapRecorder
 from jointctl.recording.trace import TraceRecorder
@@ -121,6 +122,9 @@ class Session:
             self.manager.load(name)
         for name, source in self.sources.items():
             source.sample(0.0)  # the first sample must evaluate, or the run is refused
+            # A value the controller would clamp to the joint's limits is refused, not clamped silently.
+            check_within_limits(source, self.manager.controller(name), self.robot, field=f"commands.{name}",
+                                source_file=scenario.source)
         self.manager.start(scenario.start_controllers)
         for name in self.sources:
             owner = self.manager.command_owner(name)

@@ -5,8 +5,9 @@
 - ``heatmap_<metric>.png`` when two fields or more vary: the metric over the first two numeric fields, the
   worst case over everything else in each cell (a grid or list each), else one dot a run coloured by it;
 - ``responses.png``: every finished run's analysed joint overlaid. A step response is normalised (0 before
-  the step, 1 at its final value) and drawn with the spec's band: the overshoot limit, and the settling band
-  (±2 % of the step, the step analysis's) from the settling-time limit on.
+  the step, 1 at its final value, or at the commanded step for a run that did not settle) and drawn with the
+  spec's band: the overshoot limit, and the settling band (±2 % of the step, the step analysis's) from the
+  settling-time limit on.
 
 The plotted metrics are the spec's, else the first four the analysis reports.
 """
@@ -149,7 +150,7 @@ def responses(result: SweepResult, path: Path) -> Path:
     for r in rows:
         t, y = r.trace["time_s"], r.trace["position"]
         if step:
-            y = _normalised(y, r.metrics)
+            y = _normalised(y, r.metrics, r.trace["reference"])
             if y is None:
                 continue
         lines.append(np.column_stack([t, y]))
@@ -160,7 +161,7 @@ def responses(result: SweepResult, path: Path) -> Path:
     nominal = result.nominal
     if nominal is not None and nominal.error is None and nominal.trace is not None:
         t, y = nominal.trace["time_s"], nominal.trace["position"]
-        y = _normalised(y, nominal.metrics) if step else y
+        y = _normalised(y, nominal.metrics, nominal.trace["reference"]) if step else y
         if y is not None:
             ax.plot(t, y, color="k", linewidth=1.2, linestyle="--", label="nominal")
         if not step:
@@ -208,11 +209,14 @@ def _is_step(result: SweepResult) -> bool:
     return "initial_value" in names and "final_value" in names and "overshoot_pct" in names
 
 
-def _normalised(y: np.ndarray, metrics) -> np.ndarray | None:
+def _normalised(y: np.ndarray, metrics, reference: np.ndarray) -> np.ndarray | None:
+    """0 at the response's initial value, 1 at its final value; a run that did not settle (no final value) is
+    drawn to the step of its ``reference`` instead."""
     y0, y1 = _number(metrics.get("initial_value")), _number(metrics.get("final_value"))
-    if not (math.isfinite(y0) and math.isfinite(y1)) or y1 == y0:
+    step = y1 - y0 if math.isfinite(y1) else float(reference[-1] - reference[0])
+    if not math.isfinite(y0) or not math.isfinite(step) or step == 0:
         return None
-    return (y - y0) / (y1 - y0)
+    return (y - y0) / step
 
 
 def _nominal(result: SweepResult, metric: str) -> float | None:

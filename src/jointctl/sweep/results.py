@@ -1,11 +1,13 @@
 """A sweep's results: the rows in memory (:class:`SweepResult`) and on disk.
 
 - ``results.csv``: one row a run, in run order: ``index``, the varied fields' values, the analysis's metrics
-  (numbers; empty when not measured), ``pass`` (``true``/``false`` against the spec; empty without a spec or
-  when the run failed) and ``error`` (the failure's kind and line; empty when the run finished). Numbers are
-  written in full (``repr``), so the same sweep gives the same file, byte for byte.
+  (numbers, and flags such as ``moving_at_step`` as ``true``/``false``; empty when not measured), ``pass``
+  (``true``/``false`` against the spec; empty without a spec or when the run failed) and ``error`` (the
+  failure's kind and line; empty when the run finished). Numbers are written in full (``repr``), so the same
+  sweep gives the same file, byte for byte.
 - ``summary.json``: the counts (runs, passed, failed, errors by kind), the nominal run's metrics, and per
-  metric its range and its worst case with the run that gave it (strict JSON: not measured is null).
+  metric its range and its worst case with the run that gave it (strict JSON: not measured is null); a flag
+  counts as 1 when true, 0 when false, so its mean is the share of runs where it holds.
 - ``traces.npz``: each finished run's analysed joint, decimated: ``index``, ``offset`` (where each run's
   samples start in the next three), ``time_s`` [s], ``position`` and ``reference`` [m or rad].
 
@@ -203,7 +205,8 @@ def load_traces(path: str | Path) -> dict[int, dict[str, Any]]:
 
 
 def _as_float(value: Any) -> float:
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
+    """A metric as a number: a flag 1 or 0, anything else not a number NaN."""
+    return float(value) if isinstance(value, (int, float)) else math.nan
 
 
 def _cell(value: Any) -> str:

@@ -62,7 +62,7 @@ class RunTask:
 
 @dataclass
 class Row:
-    """One run's result: its ``values``, its analysis's ``metrics`` (numbers, None for not measured), or the
+    """One run's result: its ``values``, its analysis's ``metrics`` (numbers or flags, None for not measured), or the
     ``error`` that ended it (``"PhysicsError: ..."``); ``trace`` the analysed joint's decimated response
     (``joint``, ``time_s`` [s], ``position`` and ``reference`` [m or rad]); ``run_s`` the run's own wall-clock
     time in its worker [s]; ``passed`` the verdict of the sweep's spec (None without one, or on error); ``worker``
@@ -70,7 +70,7 @@ class Row:
 
     index: int
     values: dict[str, Any]
-    metrics: dict[str, float | None] = field(default_factory=dict)
+    metrics: dict[str, float | bool | None] = field(default_factory=dict)
     error: str | None = None
     trace: dict[str, Any] | None = None
     run_s: float = 0.0
@@ -177,7 +177,7 @@ def describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}"
 
 
-def _run(task: RunTask) -> tuple[dict[str, float | None], dict[str, Any]]:
+def _run(task: RunTask) -> tuple[dict[str, float | bool | None], dict[str, Any]]:
     scenario, plant, wrap = task_hooks(task)
     # The defaults reach the sessions an analysis builds to run its scenario again (another mode, other gains).
     with tempfile.TemporaryDirectory(prefix="jointctl-run-") as tmp, not_drawn(), session_defaults(plant, wrap):
@@ -195,10 +195,10 @@ def _run(task: RunTask) -> tuple[dict[str, float | None], dict[str, Any]]:
         return numbers(metrics), key_trace(session, trace, task.trace_points)
 
 
-def numbers(metrics: Mapping[str, Any], prefix: str = "") -> dict[str, float | None]:
-    """The analysis's figures flattened (``a.b``), numbers only: non-finite ones None, strings, lists and
-    :data:`NOT_ROW_METRICS` left out."""
-    flat: dict[str, float | None] = {}
+def numbers(metrics: Mapping[str, Any], prefix: str = "") -> dict[str, float | bool | None]:
+    """The analysis's figures flattened (``a.b``), numbers and flags only (a flag such as ``moving_at_step``
+    stays a bool): non-finite numbers None, strings, lists and :data:`NOT_ROW_METRICS` left out."""
+    flat: dict[str, float | bool | None] = {}
     for key, value in metrics.items():
         name = f"{prefix}{key}"
         if not prefix and key in NOT_ROW_METRICS:
@@ -207,6 +207,8 @@ def numbers(metrics: Mapping[str, Any], prefix: str = "") -> dict[str, float | N
             flat.update(numbers(value, f"{name}."))
         elif value is None:
             flat[name] = None
+        elif isinstance(value, (bool, np.bool_)):
+            flat[name] = bool(value)
         elif isinstance(value, (int, float, np.number)) and not isinstance(value, bool):
             number = float(value)
             flat[name] = number if math.isfinite(number) else None

@@ -1,7 +1,8 @@
 """Figures of merit of the command source running now, read off the live buffer.
 
 For a step: overshoot, settling time (2 % band), the oscillation (damped) frequency and the
-fitted natural frequency and damping ratio (:func:`jointctl.metrics.response.step_response`).
+fitted natural frequency and damping ratio (:func:`jointctl.metrics.response.step_response`); the
+figures that need a final value only once the response has settled (the note says why until then).
 For a sine: amplitude ratio and phase lag at the sine's frequency, over the latest whole periods
 after the transient (:func:`~jointctl.metrics.response.sinusoid_response`). The response is
 the quantity the commanded controller controls (position or velocity) of its joint.
@@ -84,6 +85,7 @@ def _step(buffer: LiveBuffer, run: SourceRun, now_s: float, period_s: float) -> 
         "rise_time_s": fit.rise_time_s,
         "steady_state_error": fit.steady_state_error,
     }
+    result["note"] = fit.not_settled  # why the figures of the final value are not there yet (None once settled)
     # Done when the fit had all it wanted (its window ends before the record does) and the
     # response has settled, or when the longest window is reached.
     settled = fit.settling_time_s is not None and elapsed > fit.settling_time_s + 0.5

@@ -26,6 +26,7 @@ from jointctl.errors import ConfigError
 from jointctl.scenario.session import Session, object_spawner
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.objects import ObjectSpec, object_from_config
+from jointctl.commands.limits import check_within_limits
 from jointctl.commands.sources import CommandSource, command_source_from_config
 from jointctl.visuals.video import robot_camera
 from jointctl.tuning.gains import GainGroup, gain_groups, gains_yaml
@@ -234,6 +235,11 @@ class Tuner:
                                f"{', '.join(self.commandable) or 'none'})", field="controller",
                                value=request.controller)
         name = request.controller
+        if request.source is not None:  # a value the controller would clamp is refused, as a scenario's is
+            page = origin == "page"
+            check_within_limits(request.source, controller, self.session.robot,
+                                field="source" if page else f"commands.{name}",
+                                source_file=None if page else self.scenario.source)
 
         def apply(t: float) -> None:
             if request.source is None:

@@ -26,7 +26,12 @@ SETTLE_BAND = 0.02
 def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
     """Step response of a position loop: ωn, ζ, overshoot, settling, steady error, and the share of
     cycles after the step with the effort at its limit; ``expected`` from the step theory (None
-    where it does not apply, ``not_applicable`` saying why), ``theory`` how it got there."""
+    where it does not apply, ``not_applicable`` saying why), ``theory`` how it got there.
+
+    A run that did not settle has no final value, steady-state error, overshoot, rise or settling
+    time (None) and ``not_settled`` says why; a run still moving when its step came has
+    ``moving_at_step`` true (:class:`~jointctl.metrics.response.StepResponse`). Both are
+    ``warnings`` too."""
     joint = analysed_joint(session, params)
     cfg = command_config(session, joint)
     step_time = float(cfg.get("at", 0.0))
@@ -58,7 +63,20 @@ def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, An
                    "margins": {named("steady_state_error"): share_of(step, "step")}}
     if theory.not_applicable:
         out_metrics["not_applicable"] = {named(k): v for k, v in theory.not_applicable.items()}
+    out_metrics["warnings"] = step_warnings(result, step, SETTLE_BAND, unit)
     return out_metrics
+
+
+def step_warnings(result: StepResponse, step: float, band: float, unit: str) -> list[str]:
+    """The sentences a step's figures need beside them: it did not settle (``not_settled``), or it was
+    still moving when the step came (its motion beyond the ±``band`` share of the ``step``)."""
+    found = [result.not_settled] if result.not_settled is not None else []
+    if result.moving_at_step:
+        found.append(f"moving at the step: the motion before it still had an amplitude of {result.motion_at_step:.3g} "
+                     f"{unit} about its rest when the step came, more than the ±{100 * band:g} % settling band of "
+                     f"the {abs(step):.3g} {unit} step ({band * abs(step):.3g} {unit}); the step's figures carry that "
+                     "motion (step later, or start the run at rest)")
+    return found
 
 
 def step_marks(t: np.ndarray, position: np.ndarray, step_time_s: float, result: StepResponse,
@@ -66,10 +84,12 @@ def step_marks(t: np.ndarray, position: np.ndarray, step_time_s: float, result: 
     """What the step figures mark (:class:`~jointctl.recording.figures.StepMarks`): the measured
     initial and final values, overshoot peak, 10-90 % rise and settling time of ``result``, the
     ±:data:`SETTLE_BAND` band, and the theory's rest as the expected final value (where it applies)."""
-    step = result.final_value - result.initial_value
-    after = t >= step_time_s
-    tau, progress = t[after] - step_time_s, np.sign(step) * (position[after] - result.initial_value) / abs(step)
-    rise = [_first_crossing(tau, progress, level) for level in (0.1, 0.9)]
+    rise: list[float | None] = [None, None]
+    if result.final_value is not None:  # a rise to the final value (a run that did not settle has none)
+        step = result.final_value - result.initial_value
+        after = t >= step_time_s
+        tau, progress = t[after] - step_time_s, np.sign(step) * (position[after] - result.initial_value) / abs(step)
+        rise = [_first_crossing(tau, progress, level) for level in (0.1, 0.9)]
     peak = int(np.argmin(np.abs(t - (step_time_s + result.peak_time_s))))
     expected = theory.details.get("rest_position") if theory.expected.get(STEADY) is not None else None
     return StepMarks(
