@@ -9,9 +9,10 @@ from pathlib import Path
 
 from jointctl.cli.common import CONTROLLERS_HELP, SET_VALUES, TARGET_HELP
 
-VARY_HELP = ("FIELD=VALUES: a scenario field as --set reaches it, model.LINK.mass (ixx ... iyz), model.JOINT.damping "
-             "(friction, armature), payload_kg, latency_cycles, noise.position or noise.velocity; VALUES a grid a:b:n, "
-             "a list [a, b, c], uniform(a, b) or normal(mu, sigma) (repeatable: grids make a full factorial)")
+VARY_HELP = ("FIELD=VALUES: a scenario field as --set reaches it (payload_kg, model.LINK.mass (ixx ... iyz), "
+             "model.JOINT.damping (friction, armature), latency_cycles, noise.position, noise.velocity, gravity, "
+             "controllers.NAME.pid.p...); VALUES a grid a:b:n, a list [a, b, c], uniform(a, b) or "
+             "normal(mu, sigma) (repeatable: grids make a full factorial)")
 
 
 def add_parsers(sub) -> None:

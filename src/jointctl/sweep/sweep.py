@@ -19,15 +19,15 @@ from pathlib import Path
 from jointctl.errors import ConfigError
 from jointctl.model.loader import load_robot_model
 from jointctl.scenario.analyses import check_analysis
+from jointctl.scenario.plant import model_target, payload_link
+from jointctl.scenario.spec import ROBOT_SETTINGS, check_robot_setting
 from jointctl.scenario.targets import resolve_target
 from jointctl.sweep.criteria import Spec, parse_spec
 from jointctl.sweep.engine import Engine, ProgressLine
 from jointctl.sweep.figures import write_figures
-from jointctl.sweep.plant import check_model_value, model_target, payload_link
 from jointctl.sweep.results import SweepResult
-from jointctl.sweep.runner import ROBOT_RUN_S, Row, RunTask, build_session, evaluate, settings_of
-from jointctl.sweep.variations import (LATENCY, MODEL_PREFIX, PAYLOAD, SPECIAL_FIELDS, Variation, check_samples,
-                                       expand, variations_from)
+from jointctl.sweep.runner import ROBOT_RUN_S, Row, RunTask, build_session, evaluate
+from jointctl.sweep.variations import LATENCY, MODEL_PREFIX, PAYLOAD, Variation, check_samples, expand, variations_from
 
 
 def run_sweep(target: str, variations: Iterable[str | Variation], *, samples: int | None = None, seed: int = 0,
@@ -90,7 +90,8 @@ def run_sweep(target: str, variations: Iterable[str | Variation], *, samples: in
 def check_variations(base: RunTask, variations: tuple[Variation, ...]) -> None:
     """Refuse, before anything runs, a field the target does not have and a grid or list value it does not take
     (ConfigError naming the field and the value). Distributions are checked at their centre; their draws are
-    checked run by run (a draw out of range is that run's error)."""
+    checked run by run (a draw out of range is that run's error). A setting of the simulated robot (payload, model,
+    latency, noise) is checked as the scenario loader checks it; any other field by building the run's session."""
     target = resolve_target(base.target, controllers=base.controllers, overrides=base.overrides,
                             robot_defaults=[f"duration_s={ROBOT_RUN_S}"])
     scenario = target.scenario
@@ -100,18 +101,16 @@ def check_variations(base: RunTask, variations: tuple[Variation, ...]) -> None:
     for variation in variations:
         field = variation.field
         values = [variation.representative] if variation.is_distribution else list(variation.values)
-        if field.startswith(MODEL_PREFIX):
-            _, _, attribute = model_target(robot, field)
+        if field.split(".")[0] in ROBOT_SETTINGS:
             for value in values:
-                check_model_value(field, attribute, value)
-        elif field in SPECIAL_FIELDS:
-            if field == PAYLOAD:
-                payload_link(robot, scenario.robot.extras, str(scenario.robot.manifest or ""))
-            for value in values:
-                settings_of({field: value})
                 if field == LATENCY and not variation.is_distribution and value != round(value):
                     raise ConfigError("a grid or list of latencies must be whole numbers of cycles", source="--vary",
                                       field=field, value=value)
+                check_robot_setting(field, value, source="--vary")
+            if field.startswith(MODEL_PREFIX):
+                model_target(robot, field)
+            elif field == PAYLOAD:
+                payload_link(robot, scenario.robot.extras, str(scenario.robot.manifest or ""))
         else:
             for value in values:
                 _check_session(base, {field: value})
