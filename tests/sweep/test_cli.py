@@ -27,6 +27,18 @@ def test_a_sweep_in_this_process_writes_its_table_summary_and_figures(tmp_path, 
     assert {"results.csv", "summary.json", "traces.npz", "responses.png", "overshoot_pct_vs_payload_kg.png"} <= files
 
 
+def test_a_list_without_brackets_gives_the_same_rows(tmp_path, capsys):
+    tables = []
+    for k, values in enumerate(("0,5", "[0, 5]")):
+        out = tmp_path / str(k)
+        assert main(["sweep", "one_dof_step", "--vary", f"payload_kg={values}", "--set", "duration_s=1.5",
+                     "--in-process", "--no-figures", "--out", str(out)]) == 0, capsys.readouterr().err
+        tables.append((out / "results.csv").read_text())
+    assert tables[0] == tables[1]
+    rows = list(csv.DictReader(tables[0].splitlines()))
+    assert [r["payload_kg"] for r in rows] == ["0", "5"] and all(r["error"] == "" for r in rows)
+
+
 @pytest.mark.parametrize("args, says", [
     (["--vary", "foo=1:2"], "--vary: foo: a grid is a:b:n"),
     (["--vary", "gravty=[1, 2]"], "--vary: gravty: unknown field (did you mean 'gravity'?"),

@@ -11,7 +11,7 @@ from jointctl.cli.common import CONTROLLERS_HELP, SET_VALUES, TARGET_HELP
 
 VARY_HELP = ("FIELD=VALUES: a scenario field as --set reaches it (payload_kg, model.LINK.mass (ixx ... iyz), "
              "model.JOINT.damping (friction, armature), latency_cycles, noise.position, noise.velocity, gravity, "
-             "controllers.NAME.pid.p...); VALUES a grid a:b:n, a list [a, b, c], uniform(a, b) or "
+             "controllers.NAME.pid.p...); VALUES a grid a:b:n, a list a,b,c or [a, b, c], uniform(a, b) or "
              "normal(mu, sigma) (repeatable: grids make a full factorial)")
 
 

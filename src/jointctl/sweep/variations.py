@@ -17,8 +17,8 @@ any other                   ``gravity``, ``duration_s``, ``controllers.joint1_po
                             ``initial_positions.joint1``...
 ==========================  ====================================================================================
 
-and VALUES is a grid ``a:b:n`` (n values from a to b, evenly spaced), a list ``[a, b, c]`` (YAML: numbers,
-true/false, words), or a distribution ``uniform(a, b)`` or ``normal(mu, sigma)``.
+and VALUES is a grid ``a:b:n`` (n values from a to b, evenly spaced), a list ``a,b,c`` or ``[a, b, c]`` (YAML:
+numbers, true/false, words), or a distribution ``uniform(a, b)`` or ``normal(mu, sigma)``.
 
 ``model.*``, ``payload_kg``, latency and noise change the simulated robot only: the controllers and their
 feed-forward keep the robot's nominal model, as on a real robot whose model is an estimate.
@@ -54,7 +54,7 @@ NOISE_POSITION = "noise.position"
 NOISE_VELOCITY = "noise.velocity"
 DISTRIBUTIONS = ("uniform", "normal")
 #: What a VALUES that is none of the forms is told.
-FORMS = "a grid a:b:n, a list [a, b, ...], uniform(a, b) or normal(mu, sigma)"
+FORMS = "a grid a:b:n, a list a,b,... or [a, b, ...], uniform(a, b) or normal(mu, sigma)"
 
 _CALL = re.compile(r"^\s*([A-Za-z_]\w*)\s*\((.*)\)\s*$")
 
@@ -108,6 +108,8 @@ def parse_variation(item: str) -> Variation:
         return _distribution(field, text, call.group(1), call.group(2))
     if text.startswith("["):
         return _list(field, text)
+    if "," in text:
+        return _list(field, f"[{text}]", text)
     if ":" in text:
         return _grid(field, text)
     raise ConfigError(f"expected {FORMS} (a single value is a --set)", source="--vary", field=field, value=text)
@@ -138,18 +140,21 @@ def _grid(field: str, text: str) -> Variation:
     return Variation(field, text, values=values)
 
 
-def _list(field: str, text: str) -> Variation:
+def _list(field: str, text: str, given: str | None = None) -> Variation:
+    """The list ``text`` (YAML ``[a, b, ...]``), as the user gave it (``given``: ``a,b,...``)."""
+    given = text if given is None else given
     try:
         values = load_yaml_text(text)
     except yaml.YAMLError:
         values = None
     if not isinstance(values, list) or not values:
-        raise ConfigError("a list is [a, b, ...] with one value or more", source="--vary", field=field, value=text)
+        raise ConfigError("a list is a,b,... or [a, b, ...] with one value or more", source="--vary", field=field,
+                          value=given)
     for value in values:
         if isinstance(value, (dict, list)) or value is None or (isinstance(value, float) and not math.isfinite(value)):
             raise ConfigError("a list's values must be finite numbers, true/false or words", source="--vary",
-                              field=field, value=text)
-    return Variation(field, text, values=tuple(values))
+                              field=field, value=given)
+    return Variation(field, given, values=tuple(values))
 
 
 def _distribution(field: str, text: str, name: str, arguments: str) -> Variation:
