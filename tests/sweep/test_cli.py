@@ -39,6 +39,17 @@ def test_a_list_without_brackets_gives_the_same_rows(tmp_path, capsys):
     assert [r["payload_kg"] for r in rows] == ["0", "5"] and all(r["error"] == "" for r in rows)
 
 
+def test_a_small_sweep_runs_in_this_process_and_says_so_in_one_line(tmp_path, capsys):
+    # Two runs of 1.5 simulated seconds of the 1-DOF robot: far less than a local cluster's start.
+    out = tmp_path / "sweep"
+    assert main(["sweep", "one_dof_step", "--vary", "payload_kg=0,5", "--set", "duration_s=1.5", "--no-figures",
+                 "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    said = [line for line in err.splitlines() if "in this process" in line]
+    assert len(said) == 1 and said[0].startswith("jointctl: 2 runs of about ") and "--workers" in said[0], err
+    assert "runs on this process" in err
+
+
 @pytest.mark.parametrize("args, says", [
     (["--vary", "foo=1:2"], "--vary: foo: a grid is a:b:n"),
     (["--vary", "gravty=[1, 2]"], "--vary: gravty: unknown field (did you mean 'gravity'?"),
