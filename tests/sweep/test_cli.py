@@ -27,6 +27,29 @@ def test_a_sweep_in_this_process_writes_its_table_summary_and_figures(tmp_path, 
     assert {"results.csv", "summary.json", "traces.npz", "responses.png", "overshoot_pct_vs_payload_kg.png"} <= files
 
 
+def test_a_list_without_brackets_gives_the_same_rows(tmp_path, capsys):
+    tables = []
+    for k, values in enumerate(("0,5", "[0, 5]")):
+        out = tmp_path / str(k)
+        assert main(["sweep", "one_dof_step", "--vary", f"payload_kg={values}", "--set", "duration_s=1.5",
+                     "--in-process", "--no-figures", "--out", str(out)]) == 0, capsys.readouterr().err
+        tables.append((out / "results.csv").read_text())
+    assert tables[0] == tables[1]
+    rows = list(csv.DictReader(tables[0].splitlines()))
+    assert [r["payload_kg"] for r in rows] == ["0", "5"] and all(r["error"] == "" for r in rows)
+
+
+def test_a_small_sweep_runs_in_this_process_and_says_so_in_one_line(tmp_path, capsys):
+    # Two runs of 1.5 simulated seconds of the 1-DOF robot: far less than a local cluster's start.
+    out = tmp_path / "sweep"
+    assert main(["sweep", "one_dof_step", "--vary", "payload_kg=0,5", "--set", "duration_s=1.5", "--no-figures",
+                 "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    said = [line for line in err.splitlines() if "in this process" in line]
+    assert len(said) == 1 and said[0].startswith("jointctl: 2 runs of about ") and "--workers" in said[0], err
+    assert "runs on this process" in err
+
+
 @pytest.mark.parametrize("args, says", [
     (["--vary", "foo=1:2"], "--vary: foo: a grid is a:b:n"),
     (["--vary", "gravty=[1, 2]"], "--vary: gravty: unknown field (did you mean 'gravity'?"),

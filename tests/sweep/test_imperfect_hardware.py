@@ -10,9 +10,6 @@ import pytest
 from jointctl.errors import ConfigError
 from jointctl.hardware.imperfect import NOISE_BLOCK_CYCLES, ImperfectHardware
 from jointctl.hardware.interface import EFFORT, HardwareInterface
-from jointctl.recording.trace import load_trace
-from jointctl.scenario.session import Session
-from jointctl.scenario.spec import load_scenario
 from jointctl.sweep.runner import RunTask, evaluate
 
 M_KG, B, KP, DT = 1.01, 10.0, 400.0, 0.001
@@ -91,17 +88,6 @@ def test_bad_settings_are_refused(kwargs, field):
     with pytest.raises(ConfigError) as caught:
         ImperfectHardware(Recording(), **kwargs)
     assert caught.value.field == field
-
-
-def test_a_wrapper_that_changes_nothing_gives_the_same_run_bit_for_bit(tmp_path):
-    scenario = load_scenario("one_dof_step", ["duration_s=1"])
-    traces = []
-    for k, wrap in enumerate((None, lambda hw: ImperfectHardware(hw))):
-        with Session(scenario, out_dir=tmp_path / str(k), wrap_hardware=wrap) as session:
-            session.run()
-        traces.append(load_trace(session.trace_path))
-    assert traces[0].columns.keys() == traces[1].columns.keys()
-    assert all(np.array_equal(traces[0][c], traces[1][c]) for c in traces[0].columns)
 
 
 def test_latency_takes_damping_away_as_a_delay_in_the_loop_does():

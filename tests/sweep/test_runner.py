@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import yaml
 
-from jointctl.sweep.runner import NOT_ROW_METRICS, RunTask, evaluate, numbers, settings_of
+from jointctl.sweep.runner import NOT_ROW_METRICS, RunTask, evaluate, numbers, task_scenario
 from tests.conftest import step_scenario
 from tests.faulty_controllers import FAULTY_TYPE
 
@@ -67,13 +67,13 @@ def test_a_controller_that_fails_during_the_run_fails_its_row(write_scenario):
     assert "deliberate fault" in row.error
 
 
-def test_values_are_sorted_by_what_they_change():
-    settings = settings_of({"payload_kg": 2, "latency_cycles": 2.0, "noise.velocity": 1e-3, "model.joint1.damping": 3,
-                            "controllers.c.pid.p": 800, "gravity": -5})
-    assert settings.overrides == ("controllers.c.pid.p=800", "gravity=-5")
-    assert settings.model == {"model.joint1.damping": 3} and settings.payload_kg == 2.0
-    assert settings.latency_cycles == 2 and settings.velocity_noise == 1e-3 and settings.position_noise == 0.0
-    assert settings.changes_plant and settings.changes_hardware
+def test_every_value_is_a_scenario_field_and_the_runs_noise_is_seeded_by_the_sweep_and_the_run():
+    scenario = task_scenario(RunTask(4, "one_dof_step", {"payload_kg": 2, "latency_cycles": 2.0, "noise.velocity": 1e-3,
+                                                        "model.joint1.damping": 3, "gravity": -5}, seed=9))
+    assert scenario.payload_kg == 2.0 and scenario.model_changes == {"model.joint1.damping": 3.0}
+    assert scenario.latency_cycles == 2 and scenario.noise.velocity == 1e-3 and scenario.noise.position == 0.0
+    assert scenario.gravity_m_s2 == (0.0, 0.0, -5.0)
+    assert scenario.noise.seed == (9, 5, 1)  # noise_seed(seed, index)
 
 
 @pytest.mark.parametrize("payload_kg", [0.0, 1.5, 5.0])

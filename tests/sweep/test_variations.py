@@ -23,6 +23,15 @@ def test_a_list_is_read_as_yaml():
     assert parse_variation("controller_file=[position, velocity]").values == ("position", "velocity")
 
 
+def test_a_list_may_be_written_without_brackets():
+    for field, text in (("payload_kg", "0,5"), ("payload_kg", " 0, 2.5 ,5 "), ("controller_file", "position,velocity")):
+        assert parse_variation(f"{field}={text}").values == parse_variation(f"{field}=[{text}]").values
+    assert parse_variation("payload_kg=0,5").values == (0, 5)
+    with pytest.raises(ConfigError, match="a list is") as caught:
+        parse_variation("payload_kg=0,,5")
+    assert caught.value.field == "payload_kg" and caught.value.value == "0,,5"
+
+
 def test_distributions_draw_from_their_parameters():
     uniform, normal = parse_variation("model.joint1.damping=uniform(7, 13)"), parse_variation("x=normal(10,3)")
     assert uniform.distribution == "uniform" and uniform.params == (7.0, 13.0) and uniform.representative == 10.0

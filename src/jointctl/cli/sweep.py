@@ -9,9 +9,10 @@ from pathlib import Path
 
 from jointctl.cli.common import CONTROLLERS_HELP, SET_VALUES, TARGET_HELP
 
-VARY_HELP = ("FIELD=VALUES: a scenario field as --set reaches it, model.LINK.mass (ixx ... iyz), model.JOINT.damping "
-             "(friction, armature), payload_kg, latency_cycles, noise.position or noise.velocity; VALUES a grid a:b:n, "
-             "a list [a, b, c], uniform(a, b) or normal(mu, sigma) (repeatable: grids make a full factorial)")
+VARY_HELP = ("FIELD=VALUES: a scenario field as --set reaches it (payload_kg, model.LINK.mass (ixx ... iyz), "
+             "model.JOINT.damping (friction, armature), latency_cycles, noise.position, noise.velocity, gravity, "
+             "controllers.NAME.pid.p...); VALUES a grid a:b:n, a list a,b,c or [a, b, c], uniform(a, b) or "
+             "normal(mu, sigma) (repeatable: grids make a full factorial)")
 
 
 def add_parsers(sub) -> None:
@@ -25,7 +26,8 @@ def add_parsers(sub) -> None:
     sweep.add_argument("--spec", default=None, metavar="METRIC<=X,...",
                        help="what a run must meet to pass, e.g. overshoot_pct<=10,settling_time_s<=0.3")
     sweep.add_argument("--workers", type=int, default=None,
-                       help="worker processes of the local cluster (default: one per core)")
+                       help="run on a local cluster of this many worker processes (default: one per core, when the "
+                            "runs take longer than the cluster's start; else in this process)")
     sweep.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="submit to a running Dask cluster (tcp://host:8786) instead of starting one here")
     sweep.add_argument("--in-process", action="store_true", help="run here, one run after the other, without Dask")
@@ -50,7 +52,8 @@ def _sweep(args: argparse.Namespace) -> int:
     result = run_sweep(args.target, args.vary, samples=args.samples, seed=args.seed, spec=args.spec,
                        scheduler=args.scheduler, workers=args.workers, in_process=args.in_process, out_dir=out,
                        controllers=args.controllers, overrides=args.overrides, package_path=args.package_path,
-                       figures=not args.no_figures, progress=True)
+                       figures=not args.no_figures, progress=True,
+                       say=lambda line: print(f"jointctl: {line}", file=sys.stderr, flush=True))
     summary = result.summary()
     shown = {k: summary[k] for k in ("runs", "finished", "passed", "failed", "errors", "errors_by_kind")}
     shown["worst"] = {m: entry["worst"] for m, entry in summary["metrics"].items()

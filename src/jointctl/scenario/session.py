@@ -3,12 +3,12 @@
 The hardware is a MuJoCo simulation of the scenario's robot, unless another hardware (a real
 robot's, e.g. :class:`~jointctl.hardware.industrial.IndustrialHardware`) is given.
 
-Two hooks let a run differ from the robot its controllers know (a sweep's uncertain plants): ``plant``
-makes the simulated robot from the robot's model (a heavier link, more damping), while the controllers
-and their feed-forward keep the nominal model; ``wrap_hardware`` puts the hardware behind another
-interface (commands that arrive late, noisy sensors) before the controllers are given its handles. Within
-:func:`session_defaults` every session built without hooks of its own gets the block's: an analysis that runs
-its scenario again (in the chapter's mode, with other gains) then runs it on the same varied robot.
+The simulated robot may differ from the robot its controllers know, as a real robot differs from its model:
+the scenario's ``payload_kg`` and ``model.*`` make the robot simulated (:func:`simulated_robot`: a heavier
+link, more damping), while the controllers and their feed-forward keep the nominal model; its
+``latency_cycles`` and ``noise`` put the simulated hardware behind
+:class:`~jointctl.hardware.imperfect.ImperfectHardware` (commands that arrive late, noisy sensors) before the
+controllers are given its handles. Given hardware has its own: these settings are refused with it.
 
 A :class:`Session` owns every part of one run and wires the edges to the loop:
 each command source feeds its controller at the start of a cycle, and the
@@ -19,20 +19,19 @@ recorder, when an output folder is given, observes the end of each cycle (and, w
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from contextvars import ContextVar
 from pathlib import Path
 
 import numpy as np
 
 from jointctl.control.manager import ControllerManager, read_yaml
 from jointctl.errors import ConfigError
+from jointctl.hardware.imperfect import ImperfectHardware
 from jointctl.hardware.mujoco_hardware import MujocoHardware
 from jointctl.model.loader import description_text, load_robot_model
 from jointctl.model.robot_model import RobotModel
 from jointctl.runtime.clock import SimulatedClock, WallClockPacer
 from jointctl.runtime.loop import ControlLoop
+from jointctl.scenario.plant import payload_link, varied_plant
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.mjcf_builder import WorldSettings
 from jointctl.hardware.interface import HardwareInterface, SimulationDoor
@@ -48,21 +47,16 @@ from jointctl.trajectory.messages import JointTrajectory
 
 TRACE_FILE = "trace.csv"
 
-PlantChange = Callable[[RobotModel], RobotModel]
-HardwareWrapper = Callable[[HardwareInterface], HardwareInterface]
-#: The hooks of :func:`session_defaults` (per thread and task: a context variable).
-_DEFAULTS: ContextVar[tuple[PlantChange | None, HardwareWrapper | None]] = ContextVar(
-    "jointctl_session_defaults", default=(None, None))
 
-
-@contextmanager
-def session_defaults(plant: PlantChange | None = None, wrap_hardware: HardwareWrapper | None = None) -> Iterator[None]:
-    """Within this block a :class:`Session` built without a ``plant`` (or ``wrap_hardware``) of its own gets this one."""
-    token = _DEFAULTS.set((plant, wrap_hardware))
-    try:
-        yield
-    finally:
-        _DEFAULTS.reset(token)
+def simulated_robot(robot: RobotModel, scenario: Scenario) -> RobotModel:
+    """The robot ``scenario`` simulates: ``robot`` with its ``model.*`` changes and its payload at the payload link
+    (robot.yaml's ``payload_link``, else the last link); ``robot`` itself when it changes nothing. ConfigError
+    naming the scenario and the field when the robot has no such link or joint."""
+    if not scenario.changes_robot:
+        return robot
+    manifest = str(scenario.robot.manifest) if scenario.robot.manifest else None
+    link = payload_link(robot, scenario.robot.extras, manifest) if scenario.payload_kg else None
+    return varied_plant(robot, scenario.model_changes, scenario.payload_kg, link, scenario.source)
 
 
 class Session:
@@ -78,34 +72,31 @@ class Session:
         package_path: tuple[str, ...] = (),
         hardware: HardwareInterface | None = None,
         mcap: bool = False,
-        plant: PlantChange | None = None,
-        wrap_hardware: HardwareWrapper | None = None,
     ) -> None:
-        default_plant, default_wrapper = _DEFAULTS.get()
-        if hardware is None:
-            plant = plant or default_plant
-        wrap_hardware = wrap_hardware or default_wrapper
         self.scenario = scenario
-        #: The robot's model: what the controllers (and their feed-forward) and the analyses know.
+        #: The robot's model: what the controllers (and their feed-forward) know.
         self.robot: RobotModel = load_robot_model(scenario.robot.description, search_path=package_path)
-        #: The robot simulated: ``plant(robot)``, or the robot's model itself.
+        #: The robot simulated (:func:`simulated_robot`): the robot's model itself unless the scenario changes it.
         self.plant: RobotModel = self.robot
         #: The simulated world (None when the session drives given ``hardware``, e.g. a real robot).
         self.world: MujocoWorld | None = None
         if hardware is None:
-            if plant is not None:
-                self.plant = plant(self.robot)
+            self.plant = simulated_robot(self.robot, scenario)
             settings = WorldSettings(scenario.timestep_s, scenario.gravity_m_s2, scenario.floor)
             self.world = MujocoWorld(self.plant, settings, initial_positions=scenario.initial_positions,
                                      source=scenario.source)
             hardware = MujocoHardware(self.world)
-        elif plant is not None:
-            raise ConfigError("a changed plant needs the simulated robot; this hardware is given", field="plant")
+            if scenario.imperfect:
+                hardware = ImperfectHardware(hardware, latency_cycles=scenario.latency_cycles,
+                                             position_noise=scenario.noise.position,
+                                             velocity_noise=scenario.noise.velocity, seed=scenario.noise.seed)
+        elif scenario.robot_settings():
+            name, value = next(iter(scenario.robot_settings().items()))
+            raise ConfigError("is a setting of the simulated robot; this hardware is given (a real robot has its "
+                              "own)", source=scenario.source, field=name, value=value)
         elif scenario.objects:
             raise ConfigError("objects need a simulated robot; this hardware has no simulation door",
                               source=scenario.source, field="objects", value=[o.name for o in scenario.objects])
-        if wrap_hardware is not None:
-            hardware = wrap_hardware(hardware)
         for k, obj in enumerate(scenario.objects):
             if self.world.has_body(obj.name):
                 raise ConfigError("a link of the robot already has that name", source=scenario.source,

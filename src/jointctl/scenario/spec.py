@@ -21,6 +21,13 @@ live here::
          xyz: [0, 0, 4], spawn_at_s: 1.0}
     record: {every: 1}
     analysis: {type: step_response, joint: joint1}
+    # The simulated robot as a real one may be: the controllers keep the robot's nominal model.
+    payload_kg: 2.5                 # a point mass at the payload link (robot.yaml payload_link, else the last link)
+    model:                          # the simulated robot's links and joints (model.LINK.FIELD, model.JOINT.FIELD)
+      link2: {mass: 1.2}            # mass [kg] (the inertia scaled with it), ixx iyy izz ixy ixz iyz [kg·m²]
+      joint1: {damping: 12}         # damping [N·s/m or N·m·s/rad], friction [N or N·m], armature [kg or kg·m²]
+    latency_cycles: 2               # commands reach the robot this many control cycles late
+    noise: {position: 1.0e-4, velocity: 1.0e-3, seed: 0}   # white noise on each measured position, velocity
 
 ``--set key=value`` overrides any field before validation (``value`` is read
 as YAML: ``--set gravity=-5``, ``--set controllers.joint1_position_controller.pid.p=800``).
@@ -31,6 +38,7 @@ loader of the files too): ``800``, ``1_000``, ``2.5``, ``.5``, ``1e3``, ``1E-3``
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +50,7 @@ from jointctl.control.manager import load_yaml_text, read_yaml, set_dotted
 from jointctl.control.params import unknown_field_message
 from jointctl.errors import ConfigError
 from jointctl.paths import robots_dir, scenarios_dir
+from jointctl.scenario.plant import JOINT_FIELDS, LINK_FIELDS, PAYLOAD, check_model_value, check_payload
 from jointctl.sim.objects import ObjectSpec, object_from_config
 from jointctl.sim.steps import physics_steps
 from jointctl.validate import checked_number
@@ -49,10 +58,15 @@ from jointctl.validate import checked_number
 _KEYS = {
     "name", "description", "robot", "controller_file", "controllers", "start_controllers",
     "gravity", "timestep_s", "loop_rate_hz", "floor", "initial_positions", "duration_s",
-    "commands", "record", "analysis", "objects", "goals",
+    "commands", "record", "analysis", "objects", "goals", "payload_kg", "model", "latency_cycles", "noise",
 }
 #: Every top-level field a scenario may have (what ``--set`` reaches).
 SCENARIO_FIELDS = frozenset(_KEYS)
+#: The fields of the simulated robot a real robot leaves uncertain (the controllers keep the nominal model):
+#: the payload [kg], the model's links and joints, the commands' latency [control cycles], the sensors' noise.
+LATENCY = "latency_cycles"
+NOISE_FIELDS = ("position", "velocity", "seed")
+ROBOT_SETTINGS = (PAYLOAD, "model", LATENCY, "noise")
 _GOAL_SOURCES = ("trajectory", "file", "coarse_sine", "path")
 _DESCRIPTION_SUFFIXES = (".xacro", ".urdf")
 
@@ -78,8 +92,24 @@ class RobotFiles:
 
 
 @dataclass(frozen=True)
+class SensorNoise:
+    """White Gaussian noise on each measured joint position and velocity: standard deviations [m or rad, m/s or
+    rad/s], drawn from a generator seeded with ``seed`` (a whole number or a tuple of them): the same seed, the same
+    run."""
+
+    position: float = 0.0
+    velocity: float = 0.0
+    seed: int | tuple[int, ...] = 0
+
+    @property
+    def any(self) -> bool:
+        return self.position > 0 or self.velocity > 0
+
+
+@dataclass(frozen=True)
 class Scenario:
-    """A validated scenario. Paths are absolute; numbers SI."""
+    """A validated scenario. Paths are absolute; numbers SI. ``payload_kg``, ``model_changes``
+    (``model.NAME.FIELD`` -> value), ``latency_cycles`` and ``noise`` describe the simulated robot only."""
 
     name: str
     source: str
@@ -100,6 +130,30 @@ class Scenario:
     analysis: dict[str, Any] | None
     description: str = ""
     raw: dict[str, Any] = field(default_factory=dict, repr=False)
+    payload_kg: float = 0.0
+    model_changes: dict[str, float] = field(default_factory=dict)
+    latency_cycles: int = 0
+    noise: SensorNoise = SensorNoise()
+
+    @property
+    def changes_robot(self) -> bool:
+        """Whether the simulated robot differs from the robot's model (a payload, a changed link or joint)."""
+        return bool(self.model_changes) or self.payload_kg != 0.0
+
+    @property
+    def imperfect(self) -> bool:
+        """Whether commands arrive late or the sensors are noisy."""
+        return self.latency_cycles != 0 or self.noise.any
+
+    def robot_settings(self) -> dict[str, Any]:
+        """The settings of the simulated robot this scenario gives, by the names ``--set`` uses."""
+        settings: dict[str, Any] = {PAYLOAD: self.payload_kg} if self.payload_kg else {}
+        settings.update(self.model_changes)
+        if self.latency_cycles:
+            settings[LATENCY] = self.latency_cycles
+        settings.update({f"noise.{k}": v for k, v in (("position", self.noise.position),
+                                                     ("velocity", self.noise.velocity)) if v})
+        return settings
 
 
 def builtin_scenarios() -> dict[str, Path]:
@@ -143,6 +197,20 @@ def parse_override(item: str) -> tuple[str, Any]:
     except yaml.YAMLError:
         raise ConfigError("the value is not valid YAML", source="--set", field=key, value=text) from None
     return key, value
+
+
+def check_robot_setting(field: str, value: Any, source: str | None = None) -> None:
+    """Check one setting of the simulated robot (a field under :data:`ROBOT_SETTINGS`: ``payload_kg``,
+    ``model.NAME.FIELD``, ``latency_cycles``, ``noise.*``) as the scenario loader checks it, without a scenario
+    (ConfigError naming ``source``, the field and the value). Whether the robot has the link or joint is the
+    session's check."""
+    raw: dict[str, Any] = {}
+    set_dotted(raw, field, value, source=source)
+    checks = _Validator(raw, source, Path.cwd())
+    check_payload(raw.get(PAYLOAD, 0.0), source)
+    checks.model_changes()
+    checks.latency_cycles()
+    checks.noise()
 
 
 def flatten(mapping: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -237,7 +305,63 @@ class _Validator:
             analysis=analysis,
             description=str(raw.get("description", "")).strip(),
             raw=raw,
+            payload_kg=check_payload(raw.get(PAYLOAD, 0.0), self.source),
+            model_changes=self.model_changes(),
+            latency_cycles=self.latency_cycles(),
+            noise=self.noise(),
         )
+
+    def model_changes(self) -> dict[str, float]:
+        """``model: {NAME: {FIELD: value}}`` -> ``{"model.NAME.FIELD": value}``, each field a link's or a joint's
+        (:data:`~jointctl.scenario.plant.LINK_FIELDS`, :data:`~jointctl.scenario.plant.JOINT_FIELDS`) with a value it
+        takes. Whether the robot has the link or joint is checked when the session reads the robot."""
+        value = self.raw.get("model")
+        if value is None:
+            return {}
+        if not isinstance(value, dict):
+            raise self.error("must be a mapping of links and joints to their fields", "model", value)
+        known = sorted(set(LINK_FIELDS) | set(JOINT_FIELDS))
+        changes = {}
+        for name, fields in value.items():
+            if not isinstance(fields, dict) or not fields:
+                raise self.error("must be a mapping of the link's or joint's fields (model.LINK.FIELD)",
+                                 f"model.{name}", fields)
+            for attribute, number in fields.items():
+                dotted = f"model.{name}.{attribute}"
+                if attribute not in known:
+                    raise self.error(unknown_field_message(str(attribute), known), dotted, number)
+                changes[dotted] = check_model_value(dotted, attribute, number, self.source)
+        return changes
+
+    def latency_cycles(self) -> int:
+        value = self.raw.get(LATENCY, 0)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                or value != int(value):
+            raise self.error("must be a whole number of control cycles", LATENCY, value)
+        if value < 0:
+            raise self.error("must not be negative", LATENCY, value)
+        return int(value)
+
+    def noise(self) -> SensorNoise:
+        value = self.raw.get("noise")
+        if value is None:
+            return SensorNoise()
+        if not isinstance(value, dict):
+            raise self.error("must be a mapping of position, velocity and seed", "noise", value)
+        for key in value:
+            if key not in NOISE_FIELDS:
+                raise self.error(unknown_field_message(str(key), NOISE_FIELDS), f"noise.{key}", value[key])
+        sigmas = []
+        for key in ("position", "velocity"):
+            sigma = value.get(key, 0.0)
+            if isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or not math.isfinite(sigma) or sigma < 0:
+                raise self.error("must be a standard deviation, 0 or more", f"noise.{key}", sigma)
+            sigmas.append(float(sigma))
+        seed = value.get("seed", 0)
+        parts = seed if isinstance(seed, list) and seed else [seed]
+        if not all(isinstance(p, int) and not isinstance(p, bool) and p >= 0 for p in parts):
+            raise self.error("must be a whole number, 0 or more, or a list of them", "noise.seed", seed)
+        return SensorNoise(*sigmas, seed=tuple(seed) if isinstance(seed, list) else seed)
 
     def goals(self, started: list[str]) -> tuple[dict[str, Any], ...]:
         """Trajectory goals sent to a started executor at ``at_s``: one of ``trajectory`` (the

@@ -1,7 +1,8 @@
 """Sweeps and Monte Carlo runs of a scenario over what varies: gains, the plant, payload, latency, noise.
 
-A sweep runs one ordinary scenario run per sample on Dask distributed (a local cluster by default, an existing
-one by address) and turns the rows into ``results.csv``, ``summary.json`` and figures. The library:
+A sweep runs one ordinary scenario run per sample (every field it varies is the scenario's, as ``--set`` names it)
+on Dask distributed (a local cluster, an existing one by address, or this process when the runs are too few to pay
+for a cluster's start) and turns the rows into ``results.csv``, ``summary.json`` and figures. The library:
 
 - :func:`run_sweep` (target, ``--vary`` items, samples, seed, spec, engine...) -> :class:`SweepResult`;
 - :class:`Engine`: a local cluster, a cluster at an address, or this process; reusable across sweeps;

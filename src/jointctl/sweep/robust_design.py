@@ -4,7 +4,7 @@
 position loop against the plants a real robot may be (SI units throughout):
 
 1. **The family.** Each ``FIELD=a:b`` is a range of what the robot leaves uncertain: ``payload_kg`` (a point
-   mass at the payload link, :mod:`jointctl.sweep.plant`) or ``model.<link|joint>.<field>`` (link masses and
+   mass at the payload link, :mod:`jointctl.scenario.plant`) or ``model.<link|joint>.<field>`` (link masses and
    inertias, joint damping, friction, armature). The family's plants: every corner of the ranges, their centre,
    and ``samples`` uniform draws inside them (a generator seeded with ``seed``). For each, the joint's inertia
    ``m_k`` (the varied model's mass-matrix diagonal at the scenario's pose), its damping ``b_k`` and gravity
@@ -46,7 +46,7 @@ from jointctl.identification.frequency_response import LoopModel
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.model.loader import load_robot_model
 from jointctl.scenario.spec import Scenario
-from jointctl.sweep.plant import check_model_value, check_payload, model_target, payload_link, varied_plant
+from jointctl.scenario.plant import check_model_value, check_payload, model_target, payload_link, varied_plant
 from jointctl.sweep.variations import MODEL_PREFIX, PAYLOAD
 
 #: Length of the model step each plant's figures are read from [s]: five settling times asked, at least 1 s.

@@ -1,11 +1,10 @@
 """One run of a sweep, in this process: :func:`evaluate` turns a :class:`RunTask` into its :class:`Row`.
 
 A run is an ordinary scenario run (the same :class:`~jointctl.scenario.session.Session`, loop and analysis as
-``jointctl run``) with the task's values applied: scenario fields as ``--set`` items, ``model.*`` and
-``payload_kg`` to the simulated robot only, ``latency_cycles`` and ``noise.*`` by putting the simulated
-hardware behind :class:`~jointctl.hardware.imperfect.ImperfectHardware`. The analysis draws no figures (a
-sweep keeps the numbers) and the trace goes to a temporary folder; the row keeps the analysed joint's
-position and reference, decimated, for the overlay figure.
+``jointctl run``) with the task's values set as ``--set`` items: every field a sweep varies is the scenario's
+(``model.*``, ``payload_kg``, ``latency_cycles`` and ``noise.*`` too, which the session applies to the simulated
+robot only). The analysis draws no figures (a sweep keeps the numbers) and the trace goes to a temporary folder;
+the row keeps the analysed joint's position and reference, decimated, for the overlay figure.
 
 Whatever goes wrong in a run (bad values, a controller that failed, unstable physics, a refused goal, an
 analysis that cannot read the response, any exception) becomes the row's ``error``, never an exception.
@@ -23,22 +22,19 @@ from typing import Any
 
 import numpy as np
 
-from jointctl.errors import ConfigError, JointCtlError
-from jointctl.hardware.imperfect import ImperfectHardware
+from jointctl.errors import JointCtlError
 from jointctl.recording.figures import not_drawn
 from jointctl.recording.trace import load_trace
 from jointctl.scenario.analyses import check_analysis
-from jointctl.scenario.session import Session, session_defaults
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import Scenario
 from jointctl.scenario.targets import resolve_target
-from jointctl.sweep.plant import check_payload, payload_link, varied_plant
-from jointctl.sweep.variations import (LATENCY, MODEL_PREFIX, NOISE_POSITION, NOISE_VELOCITY, PAYLOAD, noise_seed,
-                                       yaml_text)
+from jointctl.sweep.variations import noise_seed, yaml_text
 
 #: How long a robot given as the target (not a scenario) is held [s], as ``jointctl run`` does.
 ROBOT_RUN_S = 5.0
-#: Metrics of a run's analysis that are not measured figures of the run: the theory from the nominal model
-#: (``expected``, ``plant``: the varied plant is not what the analysis knows) and the run's wall-clock speed
-#: (which would make the table depend on the machine).
+#: Metrics of a run's analysis that are not measured figures of the run: the theory (``expected``, ``plant``: a
+#: model's figures) and the run's wall-clock speed (which would make the table depend on the machine).
 NOT_ROW_METRICS = ("expected", "plant", "scenario", "real_time_factor", "video")
 #: Samples kept of the analysed joint's response (for the overlay figure).
 TRACE_POINTS = 400
@@ -78,83 +74,24 @@ class Row:
     worker: str | None = None
 
 
-@dataclass(frozen=True)
-class RunSettings:
-    """A task's values sorted by what they change (see :mod:`jointctl.sweep.variations`)."""
-
-    overrides: tuple[str, ...]
-    model: dict[str, float]
-    payload_kg: float
-    latency_cycles: int
-    position_noise: float
-    velocity_noise: float
-
-    @property
-    def changes_plant(self) -> bool:
-        return bool(self.model) or self.payload_kg != 0.0
-
-    @property
-    def changes_hardware(self) -> bool:
-        return self.latency_cycles != 0 or self.position_noise != 0.0 or self.velocity_noise != 0.0
+def task_overrides(task: RunTask) -> list[str]:
+    """The task's ``--set`` items: the seed of the run's sensor noise (from the sweep's seed and the run's index,
+    unless the sweep's own items or values set one), the sweep's own items, then the run's values (every one a
+    scenario field, the simulated robot's too)."""
+    seed = ", ".join(str(part) for part in noise_seed(task.seed, task.index))
+    values = [f"{name}={yaml_text(value)}" for name, value in task.values.items()]
+    return [f"noise.seed=[{seed}]", *task.overrides, *values]
 
 
-def settings_of(values: Mapping[str, Any]) -> RunSettings:
-    """Sort ``values`` and check the special ones (ConfigError naming the field and value)."""
-    overrides, model = [], {}
-    payload, latency, noise = 0.0, 0, {NOISE_POSITION: 0.0, NOISE_VELOCITY: 0.0}
-    for name, value in values.items():
-        if name == PAYLOAD:
-            payload = check_payload(value)
-        elif name == LATENCY:
-            latency = latency_cycles(value)
-        elif name in noise:
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value < 0:
-                raise ConfigError("must be a standard deviation, 0 or more", source="--vary", field=name, value=value)
-            noise[name] = float(value)
-        elif name.startswith(MODEL_PREFIX):
-            model[name] = value
-        else:
-            overrides.append(f"{name}={yaml_text(value)}")
-    return RunSettings(tuple(overrides), model, payload, latency, noise[NOISE_POSITION], noise[NOISE_VELOCITY])
-
-
-def latency_cycles(value: Any) -> int:
-    """``latency_cycles`` as a whole number of cycles, 0 or more: a grid's 2.0 is 2; a distribution's draw is
-    rounded to the nearest cycle."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError("must be a whole number of control cycles", source="--vary", field=LATENCY, value=value)
-    cycles = int(round(value))
-    if cycles < 0:
-        raise ConfigError("must not be negative", source="--vary", field=LATENCY, value=value)
-    return cycles
+def task_scenario(task: RunTask) -> Scenario:
+    """The scenario of ``task``: its target with the task's values set (ConfigError naming the field and value)."""
+    return resolve_target(task.target, controllers=task.controllers, overrides=task_overrides(task),
+                          robot_defaults=[f"duration_s={ROBOT_RUN_S}"]).scenario
 
 
 def build_session(task: RunTask, out_dir: str | Path | None) -> Session:
     """The task's session, built and checked, not run (its trace goes to ``out_dir``; None: not recorded)."""
-    scenario, plant, wrap = task_hooks(task)
-    return Session(scenario, out_dir=out_dir, package_path=task.package_path, plant=plant, wrap_hardware=wrap)
-
-
-def task_hooks(task: RunTask):
-    """(the task's scenario, its plant change or None, its hardware wrapper or None)."""
-    settings = settings_of(task.values)
-    target = resolve_target(task.target, controllers=task.controllers,
-                            overrides=[*task.overrides, *settings.overrides],
-                            robot_defaults=[f"duration_s={ROBOT_RUN_S}"])
-    scenario = target.scenario
-    manifest = str(scenario.robot.manifest) if scenario.robot.manifest else None
-
-    def plant(robot):
-        link = payload_link(robot, scenario.robot.extras, manifest) if settings.payload_kg else None
-        return varied_plant(robot, settings.model, settings.payload_kg, link)
-
-    def wrap(hardware):
-        return ImperfectHardware(hardware, latency_cycles=settings.latency_cycles,
-                                 position_noise=settings.position_noise, velocity_noise=settings.velocity_noise,
-                                 seed=noise_seed(task.seed, task.index))
-
-    return scenario, plant if settings.changes_plant else None, wrap if settings.changes_hardware else None
+    return Session(task_scenario(task), out_dir=out_dir, package_path=task.package_path)
 
 
 def evaluate(task: RunTask) -> Row:
@@ -178,9 +115,8 @@ def describe(exc: BaseException) -> str:
 
 
 def _run(task: RunTask) -> tuple[dict[str, float | bool | None], dict[str, Any]]:
-    scenario, plant, wrap = task_hooks(task)
-    # The defaults reach the sessions an analysis builds to run its scenario again (another mode, other gains).
-    with tempfile.TemporaryDirectory(prefix="jointctl-run-") as tmp, not_drawn(), session_defaults(plant, wrap):
+    scenario = task_scenario(task)
+    with tempfile.TemporaryDirectory(prefix="jointctl-run-") as tmp, not_drawn():
         out = Path(tmp)
         with Session(scenario, out_dir=out, package_path=task.package_path) as session:
             analysis = check_analysis(session)
@@ -229,5 +165,5 @@ def key_trace(session: Session, trace, points: int) -> dict[str, Any] | None:
             "reference": trace.joint(joint, "reference")[::every].copy()}
 
 
-__all__ = ["NOT_ROW_METRICS", "ROBOT_RUN_S", "Row", "RunSettings", "RunTask", "build_session", "describe",
-           "evaluate", "key_trace", "latency_cycles", "numbers", "settings_of"]
+__all__ = ["NOT_ROW_METRICS", "ROBOT_RUN_S", "Row", "RunTask", "build_session", "describe", "evaluate", "key_trace",
+           "numbers", "task_overrides", "task_scenario"]

@@ -1,6 +1,7 @@
 """What a sweep varies, and the runs it makes.
 
-``--vary FIELD=VALUES``, where FIELD is one of
+``--vary FIELD=VALUES``, where FIELD is a scenario field, as ``--set`` reaches it in every command (the scenario
+owns them all; a sweep only iterates over them):
 
 ==========================  ====================================================================================
 ``payload_kg``              a point mass [kg] at the tool: the origin of the robot.yaml's ``payload_link``, else
@@ -12,12 +13,12 @@
                             shape, denser) or one entry of its inertia tensor ``ixx iyy izz ixy ixz iyz`` [kg·m²]
 ``model.JOINT.FIELD``       the simulated robot's joint: ``damping`` [N·s/m or N·m·s/rad], ``friction``
                             [N or N·m], ``armature`` [kg or kg·m²]
-anything else               a scenario field, as ``--set`` reaches it (``gravity``, ``duration_s``,
-                            ``controllers.joint1_position_controller.pid.p``, ``initial_positions.joint1``...)
+any other                   ``gravity``, ``duration_s``, ``controllers.joint1_position_controller.pid.p``,
+                            ``initial_positions.joint1``...
 ==========================  ====================================================================================
 
-and VALUES is a grid ``a:b:n`` (n values from a to b, evenly spaced), a list ``[a, b, c]`` (YAML: numbers,
-true/false, words), or a distribution ``uniform(a, b)`` or ``normal(mu, sigma)``.
+and VALUES is a grid ``a:b:n`` (n values from a to b, evenly spaced), a list ``a,b,c`` or ``[a, b, c]`` (YAML:
+numbers, true/false, words), or a distribution ``uniform(a, b)`` or ``normal(mu, sigma)``.
 
 ``model.*``, ``payload_kg``, latency and noise change the simulated robot only: the controllers and their
 feed-forward keep the robot's nominal model, as on a real robot whose model is an estimate.
@@ -45,18 +46,15 @@ import yaml
 from jointctl.control.manager import load_yaml_text
 from jointctl.control.params import unknown_field_message
 from jointctl.errors import ConfigError
-from jointctl.scenario.spec import SCENARIO_FIELDS
+from jointctl.scenario.plant import MODEL_PREFIX, PAYLOAD
+from jointctl.scenario.spec import LATENCY, NOISE_FIELDS, SCENARIO_FIELDS
 
-#: Fields that are no scenario field: what a real robot leaves uncertain.
-PAYLOAD = "payload_kg"
-LATENCY = "latency_cycles"
+#: The scenario's fields of the sensors' noise (standard deviations).
 NOISE_POSITION = "noise.position"
 NOISE_VELOCITY = "noise.velocity"
-SPECIAL_FIELDS = (PAYLOAD, LATENCY, NOISE_POSITION, NOISE_VELOCITY)
-MODEL_PREFIX = "model."
 DISTRIBUTIONS = ("uniform", "normal")
 #: What a VALUES that is none of the forms is told.
-FORMS = "a grid a:b:n, a list [a, b, ...], uniform(a, b) or normal(mu, sigma)"
+FORMS = "a grid a:b:n, a list a,b,... or [a, b, ...], uniform(a, b) or normal(mu, sigma)"
 
 _CALL = re.compile(r"^\s*([A-Za-z_]\w*)\s*\((.*)\)\s*$")
 
@@ -110,6 +108,8 @@ def parse_variation(item: str) -> Variation:
         return _distribution(field, text, call.group(1), call.group(2))
     if text.startswith("["):
         return _list(field, text)
+    if "," in text:
+        return _list(field, f"[{text}]", text)
     if ":" in text:
         return _grid(field, text)
     raise ConfigError(f"expected {FORMS} (a single value is a --set)", source="--vary", field=field, value=text)
@@ -140,18 +140,21 @@ def _grid(field: str, text: str) -> Variation:
     return Variation(field, text, values=values)
 
 
-def _list(field: str, text: str) -> Variation:
+def _list(field: str, text: str, given: str | None = None) -> Variation:
+    """The list ``text`` (YAML ``[a, b, ...]``), as the user gave it (``given``: ``a,b,...``)."""
+    given = text if given is None else given
     try:
         values = load_yaml_text(text)
     except yaml.YAMLError:
         values = None
     if not isinstance(values, list) or not values:
-        raise ConfigError("a list is [a, b, ...] with one value or more", source="--vary", field=field, value=text)
+        raise ConfigError("a list is a,b,... or [a, b, ...] with one value or more", source="--vary", field=field,
+                          value=given)
     for value in values:
         if isinstance(value, (dict, list)) or value is None or (isinstance(value, float) and not math.isfinite(value)):
             raise ConfigError("a list's values must be finite numbers, true/false or words", source="--vary",
-                              field=field, value=text)
-    return Variation(field, text, values=tuple(values))
+                              field=field, value=given)
+    return Variation(field, given, values=tuple(values))
 
 
 def _distribution(field: str, text: str, name: str, arguments: str) -> Variation:
@@ -190,16 +193,15 @@ def variations_from(items: Iterable[str | Variation]) -> tuple[Variation, ...]:
 
 
 def check_field_name(field: str) -> None:
-    """Refuse a FIELD that is no special field and no scenario field, with the nearest known name.
-    (``model.*`` names are checked against the robot, scenario fields below the top by the scenario.)"""
-    if field in SPECIAL_FIELDS or field.startswith(MODEL_PREFIX):
-        return
-    top = field.split(".")[0]
-    if top in SCENARIO_FIELDS:
-        return
-    known = sorted({*SPECIAL_FIELDS, *SCENARIO_FIELDS, "model.LINK_OR_JOINT.FIELD"})
-    nearest = unknown_field_message(field, known)
-    raise ConfigError(nearest, source="--vary", field=field)
+    """Refuse a FIELD that is no scenario field (and a ``noise.*`` that is none of its fields), with the nearest
+    known name. (``model.*`` names are checked against the robot, other fields below the top by the scenario.)"""
+    top, _, below = field.partition(".")
+    noise = [f"noise.{name}" for name in NOISE_FIELDS]
+    if top not in SCENARIO_FIELDS:
+        known = sorted({*SCENARIO_FIELDS, *noise, "model.LINK_OR_JOINT.FIELD"} - {"noise", "model"})
+        raise ConfigError(unknown_field_message(field, known), source="--vary", field=field)
+    if top == "noise" and below not in NOISE_FIELDS:
+        raise ConfigError(unknown_field_message(field, noise), source="--vary", field=field)
 
 
 def check_samples(samples: int | None, seed: int, variations: Sequence[Variation]) -> int:
@@ -255,5 +257,5 @@ def yaml_text(value: Any) -> str:
 
 
 __all__ = ["DISTRIBUTIONS", "FORMS", "LATENCY", "MODEL_PREFIX", "NOISE_POSITION", "NOISE_VELOCITY", "PAYLOAD",
-           "SPECIAL_FIELDS", "Variation", "check_field_name", "check_samples", "expand", "noise_seed",
+           "Variation", "check_field_name", "check_samples", "expand", "noise_seed",
            "parse_variation", "variations_from", "yaml_text"]

@@ -43,11 +43,12 @@ class JointPlant:
 
 
 def joint_plant(session: Session, joint: str) -> JointPlant:
-    """The plant of ``joint`` from the robot's dynamics at the pose the run ended in, under the
-    scenario's gravity: the joint-space inertia's diagonal entry is the mass (prismatic) or the
-    inertia about the axis (revolute) the joint moves, armature included."""
+    """The plant of ``joint`` from the simulated robot's dynamics (the session's ``plant``: a scenario's payload
+    and model changes included) at the pose the run ended in, under the scenario's gravity: the joint-space
+    inertia's diagonal entry is the mass (prismatic) or the inertia about the axis (revolute) the joint moves,
+    armature included."""
     hardware = session.hardware
-    dynamics = RobotDynamics(session.robot, session.scenario.gravity_m_s2, joints=hardware.joint_names)
+    dynamics = RobotDynamics(session.plant, session.scenario.gravity_m_s2, joints=hardware.joint_names)
     dynamics.set_pose(hardware.position)
     k = dynamics.joint_names.index(joint)
     mass = float(dynamics.mass_matrix()[k, k])

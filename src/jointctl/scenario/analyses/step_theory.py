@@ -12,6 +12,10 @@ where the P loop balances the holding effort::
 
     Kp·(r - q*) = τ_hold(q*)        (0 on the right with gravity feed-forward)
 
+The robot is the one simulated (the session's ``plant``: a scenario's payload and model changes); gravity
+feed-forward is computed from the controllers' model, so on a changed robot it leaves the difference
+``τ_hold(q*) - τ_hold,model(q*)`` (a payload's weight) on the right, and in the stiffness below.
+
 solved numerically (a bracketing root search over half a turn each side of ``r`` for a revolute
 joint, Newton's method for a prismatic one, whose holding effort does not change with its own
 position). The steady-state error is ``e_ss = r - q* = τ_hold(q*)/Kp``: positive when the joint
@@ -168,13 +172,20 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float) 
     before = np.flatnonzero(t < step_time_s)
     r0 = float(reference[before[-1]]) if before.size else r
     pose = final_pose(session, trace)
-    dynamics = RobotDynamics(session.robot, session.scenario.gravity_m_s2, joints=names)
+    dynamics = RobotDynamics(session.plant, session.scenario.gravity_m_s2, joints=names)
     feedforward = "gravity" in controller.feedforward_terms
+    model = _controllers_model(session, names)
 
     def holding(q: float) -> float:
         pose[j] = q
+        if feedforward and model is None:
+            return 0.0
         dynamics.set_pose(pose, inertia=False)
-        return float(dynamics.gravity_at_pose()[j]) if not feedforward else 0.0
+        hold = float(dynamics.gravity_at_pose()[j])
+        if feedforward:
+            model.set_pose(pose, inertia=False)
+            hold -= float(model.gravity_at_pose()[j])
+        return hold
 
     kp = gains.p
     try:
@@ -201,7 +212,7 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float) 
     pose[j] = rest
     dynamics.set_pose(pose)
     mass = dynamics.mass_matrix()
-    stiffness, damping = _loops(session, dynamics, pose)
+    stiffness, damping = _loops(session, dynamics, pose, model)
     gravity_stiffness = float(stiffness[j, j] - kp)
     inertia = float(mass[j, j])
     k = kp + gravity_stiffness
@@ -260,14 +271,18 @@ def _rest(residual, reference: float, prismatic: bool, slope) -> float:
     return float(min(roots, key=lambda q: abs(q - reference)))
 
 
-def _loops(session: Session, dynamics: RobotDynamics, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Stiffness ``K`` and damping ``D`` (n x n) of every joint's loop at ``pose``: a position loop
-    gives ``Kp`` and ``Kd`` (an integral's slow action left out), a velocity loop its gain as
-    damping, no loop nothing; ``K`` adds ``∂τ_hold/∂q`` (central differences), but for the rows of
-    joints with gravity feed-forward."""
-    names = session.hardware.joint_names
-    n = len(names)
-    gravity = np.zeros((n, n))
+def _controllers_model(session: Session, names) -> RobotDynamics | None:
+    """The dynamics of the controllers' model (what their gravity feed-forward computes) when the simulated robot
+    differs from it; None when it is the robot simulated."""
+    if session.plant is session.robot:
+        return None
+    return RobotDynamics(session.robot, session.scenario.gravity_m_s2, joints=names)
+
+
+def _gravity_gradient(dynamics: RobotDynamics, pose: np.ndarray) -> np.ndarray:
+    """``∂τ_hold/∂q`` (n x n) at ``pose`` by central differences; ``dynamics`` left at ``pose``."""
+    n = pose.size
+    gradient = np.zeros((n, n))
     for col in range(n):
         shifted = pose.copy()
         shifted[col] += DIFFERENCE_STEP
@@ -275,8 +290,22 @@ def _loops(session: Session, dynamics: RobotDynamics, pose: np.ndarray) -> tuple
         up = dynamics.gravity_at_pose().copy()
         shifted[col] -= 2 * DIFFERENCE_STEP
         dynamics.set_pose(shifted, inertia=False)
-        gravity[:, col] = (up - dynamics.gravity_at_pose()) / (2 * DIFFERENCE_STEP)
+        gradient[:, col] = (up - dynamics.gravity_at_pose()) / (2 * DIFFERENCE_STEP)
     dynamics.set_pose(pose)
+    return gradient
+
+
+def _loops(session: Session, dynamics: RobotDynamics, pose: np.ndarray,
+           model: RobotDynamics | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Stiffness ``K`` and damping ``D`` (n x n) of every joint's loop at ``pose``: a position loop
+    gives ``Kp`` and ``Kd`` (an integral's slow action left out), a velocity loop its gain as
+    damping, no loop nothing; ``K`` adds ``∂τ_hold/∂q`` (central differences), but for the rows of
+    joints with gravity feed-forward, where only what the controllers' ``model`` (when it is not the robot
+    simulated) leaves of it remains."""
+    names = session.hardware.joint_names
+    n = len(names)
+    gravity = _gravity_gradient(dynamics, pose)
+    compensated = _gravity_gradient(model, pose) if model is not None else gravity
     kp, kd = np.zeros(n), dynamics.damping.copy()
     for i, name in enumerate(names):
         controller = loop_controller(session, name)
@@ -284,7 +313,7 @@ def _loops(session: Session, dynamics: RobotDynamics, pose: np.ndarray) -> tuple
             kp[i] = controller.pid.gains.p
             kd[i] += controller.pid.gains.d
             if "gravity" in controller.feedforward_terms:
-                gravity[i, :] = 0.0
+                gravity[i, :] -= compensated[i, :]
         elif isinstance(controller, JointVelocityController):
             kd[i] += controller.pid.gains.p
     return np.diag(kp) + gravity, np.diag(kd)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 import yaml
 
@@ -12,10 +11,11 @@ from jointctl.errors import ConfigError
 from jointctl.model.loader import load_robot_model
 from jointctl.model.robot_model import Inertial, Pose
 from jointctl.paths import robots_dir
+from jointctl.scenario.plant import model_target, payload_link, varied_plant, with_point_mass
+from jointctl.scenario.run import run_scenario
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import load_scenario, read_robot_manifest
-from jointctl.sweep.plant import model_target, payload_link, varied_plant, with_point_mass
-from jointctl.sweep.runner import RunTask, evaluate
+from jointctl.scenario.targets import resolve_target
 from tests.conftest import ONE_DOF_XACRO
 
 G = 9.81
@@ -83,27 +83,19 @@ def test_model_fields_are_named_with_the_nearest_known(one_dof):
         model_target(one_dof, "model.joint1")
 
 
-def test_the_session_simulates_the_plant_and_gives_the_controllers_the_nominal_model():
-    scenario = load_scenario("one_dof_step")
-    with Session(scenario, plant=lambda robot: varied_plant(robot, {"model.joint1.damping": 20.0})) as session:
-        assert session.robot.joint("joint1").damping == 10.0
-        assert session.plant.joint("joint1").damping == 20.0
-        assert session.world.robot is session.plant
-        assert session.manager.robot is session.robot
-        assert session.manager.controller("joint1_position_controller").joint_damping == 10.0
-
-
 def test_the_feed_forward_holds_the_nominal_mass_so_a_payload_droops_by_its_weight_over_kp(tmp_path):
     # Gravity feed-forward from the controllers' model cancels the nominal weight exactly; a payload the model
     # does not know is held by the P term alone: droop = payload·g/Kp (the plant's model would give 0).
     feedforward = "controllers.joint1_position_controller.feedforward={gravity: true}"
-    rows = {p: evaluate(RunTask(0, "one_dof_step", {"payload_kg": p}, overrides=(feedforward, "duration_s=8")))
-            for p in (0.0, 2.0)}
-    assert all(row.error is None for row in rows.values()), [r.error for r in rows.values()]
+    metrics = {p: run_scenario(load_scenario("one_dof_step", [feedforward, "duration_s=8", f"payload_kg={p}"]),
+                               tmp_path / str(p), mcap=False)
+               for p in (0.0, 2.0)}
     # The final value is the mean of the last 0.8 s; the ringing has decayed by then to e^(-b/(2m)·7 s) of the
     # 0.3 m step: below 3 µm with m = 3.01 kg (2 kg on board), less without.
-    assert rows[0.0].metrics["steady_state_error_m"] == pytest.approx(0.0, abs=1e-5)
-    assert rows[2.0].metrics["steady_state_error_m"] == pytest.approx(2.0 * G / KP, abs=1e-5)
+    assert metrics[0.0]["steady_state_error_m"] == pytest.approx(0.0, abs=1e-5)
+    assert metrics[2.0]["steady_state_error_m"] == pytest.approx(2.0 * G / KP, abs=1e-5)
+    # The step theory knows the simulated robot and the controllers' model: it expects the same droop.
+    assert metrics[2.0]["expected"]["steady_state_error_m"] == pytest.approx(2.0 * G / KP, rel=1e-6)
 
 
 def test_a_robot_yaml_names_its_payload_link(tmp_path):
@@ -116,28 +108,14 @@ def test_a_robot_yaml_names_its_payload_link(tmp_path):
     manifest["payload_link"] = "link2"
     (folder / "robot.yaml").write_text(yaml.safe_dump(manifest))
     assert read_robot_manifest(folder / "robot.yaml").extras["payload_link"] == "link2"
-    row = evaluate(RunTask(0, str(folder), {"payload_kg": 1.0}))
-    assert row.error is None and row.metrics == {}  # a robot held: no analysis, no metrics
+    scenario = resolve_target(str(folder), overrides=["payload_kg=1"]).scenario
+    with Session(scenario) as session:
+        assert session.plant.link("link2").inertial.mass_kg == pytest.approx(
+            session.robot.link("link2").inertial.mass_kg + 1.0)
+        assert session.plant.link("ft_sensor_link") == session.robot.link("ft_sensor_link")
     manifest["payload_link"] = "link9"
     (folder / "robot.yaml").write_text(yaml.safe_dump(manifest))
-    row = evaluate(RunTask(0, str(folder), {"payload_kg": 1.0}))
-    assert row.error.startswith("ConfigError") and "payload_link" in row.error and "link9" in row.error
-    assert np.isfinite(row.run_s)
-
-
-def test_an_analysis_that_runs_its_scenario_again_runs_it_on_the_same_varied_robot(tmp_path):
-    from jointctl.recording.trace import load_trace
-    from jointctl.scenario.analyses.common import run_variant
-    from jointctl.scenario.session import session_defaults
-
-    scenario = load_scenario("one_dof_step", ["duration_s=1"])
-    with session_defaults(plant=lambda robot: varied_plant(robot, {"model.joint1.damping": 30.0})):
-        with Session(scenario, out_dir=tmp_path / "run") as session:
-            session.run()
-        assert session.plant.joint("joint1").damping == 30.0
-        again = run_variant(session, tmp_path / "again", {})
-    with Session(scenario, out_dir=tmp_path / "nominal") as nominal:
-        nominal.run()
-    varied, plain = load_trace(session.trace_path), load_trace(nominal.trace_path)
-    assert np.array_equal(again.joint("joint1", "position"), varied.joint("joint1", "position"))
-    assert not np.array_equal(plain.joint("joint1", "position"), varied.joint("joint1", "position"))
+    with pytest.raises(ConfigError) as caught:
+        Session(resolve_target(str(folder), overrides=["payload_kg=1"]).scenario)
+    assert caught.value.field == "payload_link" and caught.value.value == "link9"
+    assert caught.value.source == str(folder / "robot.yaml")

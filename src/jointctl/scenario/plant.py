@@ -1,9 +1,11 @@
-"""The simulated robot of one run: the robot's model with its uncertain parts changed.
+"""The simulated robot of a run: the robot's model with what a real robot leaves uncertain changed.
 
-``model.LINK.FIELD`` and ``model.JOINT.FIELD`` set a link's mass or inertia or a joint's damping, friction or
-armature; ``payload_kg`` adds a point mass at the payload link's origin (the tool or sensor frame). The
-result is a new :class:`~jointctl.model.robot_model.RobotModel` handed to the session as its plant: the
-controllers keep the nominal model.
+A scenario's ``model.LINK.FIELD`` and ``model.JOINT.FIELD`` set a link's mass or inertia or a joint's damping,
+friction or armature; its ``payload_kg`` adds a point mass at the payload link's origin (the tool or sensor
+frame). The result is a new :class:`~jointctl.model.robot_model.RobotModel` the session simulates (its
+``plant``): the controllers keep the nominal model, as on a real robot whose model is an estimate.
+
+Errors name ``source`` (the scenario file, or ``--vary``), the field as the user writes it and the value.
 """
 
 from __future__ import annotations
@@ -26,46 +28,49 @@ JOINT_FIELDS = ("damping", "friction", "armature")
 _INERTIA_INDEX = {name: k for k, name in enumerate(("ixx", "iyy", "izz", "ixy", "ixz", "iyz"))}
 #: The robot.yaml field naming the link that carries ``payload_kg``.
 PAYLOAD_LINK = "payload_link"
+#: The scenario's field of the payload [kg], and the prefix of its model fields (``model.NAME.FIELD``).
+PAYLOAD = "payload_kg"
+MODEL_PREFIX = "model."
 
 
-def model_target(robot: RobotModel, field: str) -> tuple[str, str, str]:
+def model_target(robot: RobotModel, field: str, source: str | None = "--vary") -> tuple[str, str, str]:
     """``model.NAME.FIELD`` -> (``"link"`` or ``"joint"``, NAME, FIELD); ConfigError with the nearest
     known name when the robot has no such link or joint, or it no such field."""
     parts = field.split(".")
     if len(parts) != 3:
-        raise ConfigError("is model.LINK.FIELD or model.JOINT.FIELD", source="--vary", field=field)
+        raise ConfigError("is model.LINK.FIELD or model.JOINT.FIELD", source=source, field=field)
     _, name, attribute = parts
     is_link, is_joint = robot.has_link(name), robot.has_joint(name)
     if not (is_link or is_joint):
         names = [lk.name for lk in robot.links] + [j.name for j in robot.joints]
         message = unknown_field_message(name, names).replace("unknown field", f"the robot {robot.name} has no such "
                                                              "link or joint")
-        raise ConfigError(message, source="--vary", field=field, value=name)
+        raise ConfigError(message, source=source, field=field, value=name)
     if is_joint and attribute in JOINT_FIELDS:
         return "joint", name, attribute
     if is_link and attribute in LINK_FIELDS:
         return "link", name, attribute
     known = (LINK_FIELDS if is_link else ()) + (JOINT_FIELDS if is_joint else ())
-    raise ConfigError(unknown_field_message(attribute, known), source="--vary", field=field, value=attribute)
+    raise ConfigError(unknown_field_message(attribute, known), source=source, field=field, value=attribute)
 
 
-def check_model_value(field: str, attribute: str, value) -> float:
+def check_model_value(field: str, attribute: str, value, source: str | None = "--vary") -> float:
     """The value of a model field as a float; ConfigError unless finite and allowed (a mass positive, a
     diagonal inertia entry, a damping, friction or armature 0 or more)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError("must be a finite number", source="--vary", field=field, value=value)
+        raise ConfigError("must be a finite number", source=source, field=field, value=value)
     value = float(value)
     if attribute == "mass" and not value > 0:
-        raise ConfigError("a mass must be positive [kg]", source="--vary", field=field, value=value)
+        raise ConfigError("a mass must be positive [kg]", source=source, field=field, value=value)
     if attribute in ("ixx", "iyy", "izz", *JOINT_FIELDS) and value < 0:
-        raise ConfigError("must not be negative", source="--vary", field=field, value=value)
+        raise ConfigError("must not be negative", source=source, field=field, value=value)
     return value
 
 
-def check_payload(value) -> float:
+def check_payload(value, source: str | None = "--vary") -> float:
     """``payload_kg`` as a float: 0 or more."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-        raise ConfigError("must be a mass, 0 or more [kg]", source="--vary", field="payload_kg", value=value)
+        raise ConfigError("must be a mass, 0 or more [kg]", source=source, field=PAYLOAD, value=value)
     return float(value)
 
 
@@ -81,16 +86,16 @@ def payload_link(robot: RobotModel, extras: Mapping | None = None, source: str |
 
 
 def varied_plant(robot: RobotModel, changes: Mapping[str, float], payload_kg: float = 0.0,
-                 payload_at: str | None = None) -> RobotModel:
+                 payload_at: str | None = None, source: str | None = "--vary") -> RobotModel:
     """``robot`` with ``changes`` (``model.NAME.FIELD`` -> value, checked) applied and ``payload_kg`` added as a
-    point mass at the origin of link ``payload_at`` (needed when ``payload_kg`` is not 0)."""
+    point mass at the origin of link ``payload_at`` (needed when ``payload_kg`` is not 0); errors name ``source``."""
     links = {lk.name: lk for lk in robot.links}
     joints = {j.name: j for j in robot.joints}
     # Masses first: a mass scales its link's inertia; an inertia entry given beside it is then set as given.
     ordered = sorted(changes.items(), key=lambda item: item[0].rsplit(".", 1)[-1] != "mass")
     for field, value in ordered:
-        kind, name, attribute = model_target(robot, field)
-        value = check_model_value(field, attribute, value)
+        kind, name, attribute = model_target(robot, field, source)
+        value = check_model_value(field, attribute, value, source)
         if kind == "joint":
             joints[name] = dataclasses.replace(joints[name], **{attribute: value})
             continue
@@ -109,7 +114,7 @@ def varied_plant(robot: RobotModel, changes: Mapping[str, float], payload_kg: fl
         if payload_at is None:
             raise ConfigError("a payload needs the link that carries it", field=PAYLOAD_LINK)
         links[payload_at] = dataclasses.replace(
-            links[payload_at], inertial=with_point_mass(links[payload_at].inertial, check_payload(payload_kg)))
+            links[payload_at], inertial=with_point_mass(links[payload_at].inertial, check_payload(payload_kg, source)))
     return dataclasses.replace(robot, links=tuple(links[lk.name] for lk in robot.links),
                                joints=tuple(joints[j.name] for j in robot.joints))
 
@@ -139,5 +144,5 @@ def with_point_mass(inertial: Inertial | None, mass_kg: float) -> Inertial:
                      float(tensor[0, 1]), float(tensor[0, 2]), float(tensor[1, 2])))
 
 
-__all__ = ["JOINT_FIELDS", "LINK_FIELDS", "PAYLOAD_LINK", "check_model_value", "check_payload", "model_target",
-           "payload_link", "varied_plant", "with_point_mass"]
+__all__ = ["JOINT_FIELDS", "LINK_FIELDS", "MODEL_PREFIX", "PAYLOAD", "PAYLOAD_LINK", "check_model_value",
+           "check_payload", "model_target", "payload_link", "varied_plant", "with_point_mass"]
