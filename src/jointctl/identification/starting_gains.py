@@ -16,19 +16,28 @@ controllers), at the **home pose** (each joint at 0, or mid-range when 0 is outs
   share cannot hold its own weight, and is refused. (A step's first cycle also asks the derivative
   kick ``d·step/period``: clamped at the limit for one cycle, as on any ros_control robot; a
   trajectory controller's commands carry velocities and have none.)
-- the check against gravity: a P loop rests where ``p·e = τg``; the sag ``|τg|/p`` at home must be at
-  most half the step, so the bandwidth is raised when the one asked is too soft to hold the load
-  (and, when the effort limit allows no such stiffness, the note says how far it sags).
+- the check against gravity: a P loop rests where ``p·e = τg``; the sag ``|τg|/p`` must be at most half the
+  step, so the bandwidth is raised when the one asked is too soft to hold the load (and, when the effort limit
+  allows no such stiffness, the note says how far it sags). The load is the larger of the gravity load at home
+  and at the end of the step (a joint balanced above its axis holds nothing at home, and more a step away).
+- a plant whose own damping already exceeds ``zeta`` at the bandwidth (a light joint with a stiff bearing,
+  a geared yaw axis): ``d = 0``, ``p`` for the bandwidth, and the loop's own damping ratio said in the note.
+- the step scenario init writes for the joint moves the reference along a ramp (``ramp_s``) when a step's
+  derivative kick ``d·step/period`` would ask more than half of what the effort limit leaves: the ramp's
+  kick ``d·step/ramp_s`` fits, and the step runs without clamping the effort (checked on the loop as it runs,
+  :class:`~jointctl.identification.step_loop.JointLoop`); the step comes once the start's own sag has settled
+  (``step_at_s``).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from jointctl.errors import ConfigError
-from jointctl.identification.autotune import design
+from jointctl.identification.autotune import design, loop_zeta, undamped_design
 from jointctl.identification.plant_fit import IdentificationError
+from jointctl.identification.step_loop import JointLoop, holding_effort, reference_step
 
 #: The joint interfaces a starting position loop is written for.
 EFFORT_INTERFACE = "EffortJointInterface"
@@ -46,7 +55,9 @@ class StartingGains:
     """One joint's starting position loop. ``inertia`` [kg or kg·m²] and ``damping`` [N·s/m or
     N·m·s/rad] at ``home`` [m or rad]; ``gravity_load`` [N or N·m] |τg| there; ``effort_limit`` [N or
     N·m]; ``step`` [m or rad] the step checked; ``gains`` {p, i, d}; ``bandwidth_hz`` and ``zeta``
-    designed for (the bandwidth possibly lowered from the one asked: ``note`` says why)."""
+    designed for (the bandwidth possibly lowered from the one asked: ``note`` says why); the step scenario's
+    ``ramp_s`` [s] (0: a step), ``step_at_s`` [s] when it moves, the step's ``settling_s`` [s] and
+    ``peak_effort`` [N or N·m] on the loop as it runs."""
 
     joint: str
     joint_type: str
@@ -60,6 +71,10 @@ class StartingGains:
     bandwidth_hz: float
     zeta: float
     note: str = ""
+    ramp_s: float = 0.0
+    step_at_s: float = 0.5
+    settling_s: float = 0.0
+    peak_effort: float = 0.0
 
     @property
     def controller(self) -> str:
@@ -111,14 +126,21 @@ def starting_gains(robot, *, bandwidth_hz: float = 2.0, zeta: float = 0.7, perio
         lower, upper, _ = joint.range_and_speed()
         step = min(MAX_STEP, STEP_FRACTION * (upper - lower)) if math.isfinite(upper - lower) else MAX_STEP
         limit = joint.limits.effort if joint.limits is not None and joint.limits.effort > 0 else math.inf
-        loops.append(_joint_loop(joint_name, joint.type, home[joint_name], float(mass_matrix[k, k]),
-                                 float(joint.damping), abs(float(gravity[k])), limit, step, bandwidth_hz, zeta,
-                                 period_s))
+        hold = holding_effort(robot, joint_name, home, gravity_m_s2)
+        load = max(abs(float(gravity[k])), abs(hold(home[joint_name] + step)) if hold else 0.0)
+        here = home[joint_name]
+        unstable = min(0.0, (hold(here + 1e-4) - hold(here - 1e-4)) / 2e-4) if hold else 0.0
+        loop = _joint_loop(joint_name, joint.type, here, float(mass_matrix[k, k]), float(joint.damping),
+                           load, limit, step, bandwidth_hz, zeta, period_s, -unstable)
+        loops.append(_step_move(loop, hold, period_s))
     return loops
 
 
 def _joint_loop(joint, joint_type, home, inertia, damping, gravity, limit, step, bandwidth_hz, zeta,
-                period_s) -> StartingGains:
+                period_s, tipping: float = 0.0) -> StartingGains:
+    """One joint's loop (see the module docstring). ``tipping`` [N/m or N·m/rad] is how much gravity's pull
+    grows per unit away from home for a joint balanced above its axis (``-∂τ_hold/∂q`` where negative): the
+    loop's stiffness is ``p`` less that, so ``p`` is designed that much higher."""
     allowed = EFFORT_FRACTION * limit
     if gravity >= allowed:
         raise ConfigError(f"its gravity load at the home pose, {gravity:.4g}, is {100 * gravity / limit:.0f} % of its "
@@ -133,8 +155,10 @@ def _joint_loop(joint, joint_type, home, inertia, damping, gravity, limit, step,
             gains = design(inertia, damping, loop="position", bandwidth_hz=bandwidth_hz, zeta=zeta,
                            period_s=period_s, derivative="error")
         except IdentificationError as exc:
-            raise ConfigError(f"no PD gains for {bandwidth_hz:.3g} Hz and ζ {zeta:g} ({exc.message}); choose "
-                              "another --bandwidth-hz or --zeta", field=f"joint {joint}") from None
+            if "own damping" not in exc.message:
+                raise ConfigError(f"no PD gains for {bandwidth_hz:.3g} Hz and ζ {zeta:g} ({exc.message}); choose "
+                                  "another --bandwidth-hz or --zeta", field=f"joint {joint}") from None
+            gains = undamped_design(inertia, damping, bandwidth_hz, period_s)
         p = gains["p"]
         if p_low * (1 - 1e-9) <= p <= p_high * (1 + 1e-9):
             break
@@ -153,8 +177,43 @@ def _joint_loop(joint, joint_type, home, inertia, damping, gravity, limit, step,
     if p_sag > p_effort:
         notes.append(f"sags {gravity / gains['p']:.3g} under its gravity load at home: the effort limit allows no "
                      "stiffer loop; a gravity feed-forward or a stronger motor would")
+    if tipping > 0:
+        gains = {**gains, "p": gains["p"] + tipping}
+        notes.append(f"p raised by {tipping:.3g}: balanced above its axis at home, gravity pulls it away by that much "
+                     "per unit of motion")
+    if gains["d"] == 0.0:
+        notes.append(f"d = 0: its own damping {damping:g} alone damps the loop more than ζ {zeta:g} at "
+                     f"{bandwidth_hz:.3g} Hz (ζ {loop_zeta(inertia, damping, gains['p']):.3g})")
     return StartingGains(joint, joint_type, home, inertia, damping, gravity, limit, step, gains, bandwidth_hz, zeta,
                          "; ".join(notes))
+
+
+def _step_move(loop: StartingGains, hold, period_s: float) -> StartingGains:
+    """``loop`` with its step scenario's move: a ramp long enough that the derivative kick asks at most half of
+    what :data:`EFFORT_FRACTION` of the limit leaves beside the load, lengthened until the step, run on the loop
+    as it runs (the law, the clamp, gravity over the move), asks no more than that share of the limit; the
+    step once the start's sag has settled (twice the step's settling time, at least 0.5 s)."""
+    allowed = EFFORT_FRACTION * loop.effort_limit
+    d = loop.gains["d"]
+    room = max(allowed - loop.gravity_load, 1e-9)
+    ramp_s = period_s * math.ceil(d * loop.step / (0.5 * room) / period_s) if d and math.isfinite(room) else 0.0
+    ramp_s = 0.0 if ramp_s <= period_s else ramp_s
+    joint_loop = JointLoop(loop.inertia, loop.damping, period_s, loop.effort_limit, hold, p=loop.gains["p"], d=d)
+    for _ in range(8):
+        moves = reference_step(loop.home, loop.step, hold_s=0.05, ramp_s=ramp_s, after_s=3.0, period_s=period_s)
+        figures = joint_loop.step(moves)
+        if figures.peak_effort <= allowed:
+            break
+        ramp_s = max(2 * ramp_s, 0.01)
+    settling = figures.settling_s if math.isfinite(figures.settling_s) else 1.0
+    step_at = max(0.5, math.ceil(20 * settling) / 10)
+    note = loop.note
+    if ramp_s:
+        extra = (f"its step scenario ramps over {ramp_s:g} s: a step's first cycle would ask the derivative kick "
+                 f"d·step/period = {d * loop.step / period_s:.4g}, beyond the effort limit {loop.effort_limit:g}")
+        note = f"{note}; {extra}" if note else extra
+    return replace(loop, note=note, ramp_s=ramp_s, step_at_s=step_at, settling_s=settling,
+                   peak_effort=figures.peak_effort)
 
 
 __all__ = ["EFFORT_FRACTION", "StartingGains", "effort_joints", "home_pose", "starting_gains"]

@@ -311,6 +311,7 @@ def step_response(
     step_time_s: float,
     settle_band: float = 0.02,
     fit_window_s: float | None = None,
+    ramp_s: float = 0.0,
 ) -> StepResponse:
     """Analyse the response ``position`` to a step of ``command`` at ``step_time_s``.
 
@@ -325,6 +326,10 @@ def step_response(
         fit_window_s: length of record after the step used by the fit [s];
             default: until the fitted envelope has decayed by exp(-8), using a
             first estimate from the peaks, or the end of the record.
+        ramp_s: the command reaches its last value along a ramp of this many
+            seconds from ``step_time_s`` (a step source's ``ramp_s``): its
+            changes until then are the step's; times are still read from
+            ``step_time_s`` (a short ramp delays the response by about half of it).
 
     The damping ratio and natural frequency come from a nonlinear least-squares
     fit of y = y_final + exp(-zeta wn tau) (a cos(wd tau) + b sin(wd tau)),
@@ -373,7 +378,7 @@ def step_response(
         where = ", ".join(f"{x:g}" for x in t[jumps][:3])
         found = f"it changes at t={where} s" if where else "it is constant"
         raise AnalysisError(f"no step in command at step_time_s={step_time_s:g} s: {found}")
-    later = jumps[t[jumps] > step_time_s + 2.0 * dt + eps]
+    later = jumps[t[jumps] > step_time_s + max(0.0, ramp_s) + 2.0 * dt + eps]
     if later.size:
         raise AnalysisError(
             f"command changes again at t={t[later[0]]:g} s after the step at {step_time_s:g} s; "

@@ -7,7 +7,8 @@
                                     serve defaults (the home pose), the joint the tuning page plots
       config/<robot>_control.yaml   ros_control YAML under the robot's namespace: a joint_state_controller
                                     and an effort_controllers/JointPositionController per driven joint
-      scenarios/step_<joint>.yaml   a step of the first joint from home, with its step analysis
+      scenarios/step_<joint>.yaml   per driven joint: a step from home (along a ramp where a step's derivative
+                                    kick would clamp the effort), with its step analysis
 
 Every command that takes a robot then takes ``DIR`` (or ``DIR/robot.yaml``), and every scenario
 may name it (``robot: ..`` from ``scenarios/``). Nothing is overwritten unless asked.
@@ -24,10 +25,13 @@ from jointctl.errors import ConfigError
 JOINT_STATE_RATE_HZ = 50
 
 
-def planned_files(out_dir: Path, robot_name: str, first_joint: str) -> dict[str, Path]:
-    """{role: path} of the files :func:`write_robot_folder` writes into ``out_dir``."""
-    return {"manifest": out_dir / "robot.yaml", "controllers": out_dir / "config" / f"{robot_name}_control.yaml",
-            "scenario": out_dir / "scenarios" / f"step_{first_joint}.yaml"}
+def planned_files(out_dir: Path, robot_name: str, joints) -> dict[str, Path]:
+    """{role: path} of the files :func:`write_robot_folder` writes into ``out_dir``: ``manifest``,
+    ``controllers``, ``scenario`` (the first joint's step) and ``scenario:<joint>`` for each of ``joints``."""
+    files = {"manifest": out_dir / "robot.yaml", "controllers": out_dir / "config" / f"{robot_name}_control.yaml",
+             "scenario": out_dir / "scenarios" / f"step_{joints[0]}.yaml"}
+    files.update({f"scenario:{joint}": out_dir / "scenarios" / f"step_{joint}.yaml" for joint in joints[1:]})
+    return files
 
 
 def write_robot_folder(description: Path, out_dir: Path, robot_name: str, loops, *, bandwidth_hz: float,
@@ -36,7 +40,7 @@ def write_robot_folder(description: Path, out_dir: Path, robot_name: str, loops,
     """Write the folder of the module docstring for ``description`` with the starting ``loops``
     (:class:`~jointctl.identification.starting_gains.StartingGains`, at least one); {role: path}.
     A ConfigError naming the file when one exists and ``force`` is false (before anything is written)."""
-    files = planned_files(out_dir, robot_name, loops[0].joint)
+    files = planned_files(out_dir, robot_name, [loop.joint for loop in loops])
     existing = [str(p) for p in files.values() if p.exists()]
     if existing and not force:
         raise ConfigError("exists; pass --force to overwrite", field="--out", value=existing[0])
@@ -45,7 +49,9 @@ def write_robot_folder(description: Path, out_dir: Path, robot_name: str, loops,
     relative = Path(os.path.relpath(description.resolve(), out_dir.resolve())).as_posix()
     files["manifest"].write_text(_manifest(robot_name, relative, loops))
     files["controllers"].write_text(_controllers(robot_name, description.name, loops, bandwidth_hz, zeta))
-    files["scenario"].write_text(_step_scenario(robot_name, loops, gravity_z_m_s2, timestep_s))
+    for loop in loops:
+        key = "scenario" if loop is loops[0] else f"scenario:{loop.joint}"
+        files[key].write_text(_step_scenario(robot_name, loops, loop, gravity_z_m_s2, timestep_s))
     return files
 
 
@@ -93,25 +99,30 @@ def _controllers(robot_name: str, source: str, loops, bandwidth_hz: float, zeta:
     return "\n".join(lines) + "\n"
 
 
-def _step_scenario(robot_name: str, loops, gravity_z_m_s2: float, timestep_s: float) -> str:
-    first = loops[0]
-    start, end = first.home, first.home + first.step
+def _step_scenario(robot_name: str, loops, moved, gravity_z_m_s2: float, timestep_s: float) -> str:
+    """The scenario of ``moved``'s step from the home pose, the other joints held by their loops."""
+    start, end = moved.home, moved.home + moved.step
     home = ", ".join(f"{loop.joint}: {_number(loop.home)}" for loop in loops)
     started = ", ".join(["joint_state_controller", *(loop.controller for loop in loops)])
-    return (f"name: {robot_name}_step_{first.joint}\n"
+    ramp = f", ramp_s: {_number(moved.ramp_s)}" if moved.ramp_s else ""
+    how = f"along a {_number(moved.ramp_s)} s ramp (a step's derivative kick would clamp the effort)" \
+        if moved.ramp_s else "at once"
+    duration = moved.step_at_s + moved.ramp_s + max(2.5, 3 * moved.settling_s)
+    return (f"name: {robot_name}_step_{moved.joint}\n"
             "description: >\n"
-            f"  {first.joint} steps by {_number(first.step)} from the home pose, the other joints held by their "
-            "loops.\n"
+            f"  {moved.joint} steps by {_number(moved.step)} from the home pose {how}, once the start's sag has "
+            "settled; the other joints held by their loops.\n"
             "robot: ..\n"
             "controller_file: position\n"
             f"start_controllers: [{started}]\n"
             f"gravity: {_number(gravity_z_m_s2)}\n"
             f"timestep_s: {_number(timestep_s)}\n"
             f"initial_positions: {{{home}}}\n"
-            "duration_s: 3.0\n"
+            f"duration_s: {_number(round(duration, 1))}\n"
             "commands:\n"
-            f"  {first.controller}: {{type: step, from: {_number(start)}, to: {_number(end)}, at: 0.5}}\n"
-            f"analysis: {{type: step_response, joint: {first.joint}}}\n")
+            f"  {moved.controller}: {{type: step, from: {_number(start)}, to: {_number(end)}, "
+            f"at: {_number(moved.step_at_s)}{ramp}}}\n"
+            f"analysis: {{type: step_response, joint: {moved.joint}}}\n")
 
 
 __all__ = ["JOINT_STATE_RATE_HZ", "planned_files", "write_robot_folder"]

@@ -37,7 +37,8 @@ def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, An
     step_time = float(cfg.get("at", 0.0))
     t = trace.time_s
     cmd, pos = trace.joint(joint, "reference"), trace.joint(joint, "position")
-    result = step_response(t, cmd, pos, step_time_s=step_time, settle_band=SETTLE_BAND)
+    result = step_response(t, cmd, pos, step_time_s=step_time, settle_band=SETTLE_BAND,
+                           ramp_s=float(cfg.get("ramp_s", 0.0)))
     plant = joint_plant(session, joint)
     theory = step_theory(session, trace, joint, step_time)
     unit = units(session, joint).position
