@@ -252,6 +252,29 @@ def test_identify_writes_metrics_and_reads_its_own_trace_back(tmp_path):
     assert json.loads((tmp_path / "b" / "metrics.json").read_text())["mass_kg"] == pytest.approx(metrics["mass_kg"])
 
 
+def test_identify_reports_a_poor_fit_with_its_warning(tmp_path):
+    # A recorded joint whose effort is mostly noise (a torque reading three times noisier than the swing
+    # it should explain): the fit is reported, and says it is poor in metrics.json and in the result printed.
+    import numpy as np
+
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 6.0, 0.001)
+    qd = 0.3 * 2 * np.pi * 0.7 * np.cos(2 * np.pi * 0.7 * t)
+    q = 0.3 * np.sin(2 * np.pi * 0.7 * t)
+    effort = np.append(np.diff(qd) / 0.001, 0.0) + 10.0 * qd + 9.81
+    effort += rng.normal(0.0, 3.0 * np.std(effort), t.size)
+    trace = tmp_path / "trace.csv"
+    np.savetxt(trace, np.column_stack([t, q, qd, effort]), delimiter=",", comments="",
+               header="time_s,joint1.position,joint1.velocity,joint1.effort")
+    result = jointctl("identify", trace, "--joint", "joint1", "--joint-type", "prismatic", "--out", tmp_path / "o")
+    assert result.returncode == 0, result.stderr
+    printed = json.loads(result.stdout)
+    assert printed["r_squared"] < 0.95
+    assert any(w.startswith("a poor fit") for w in printed["warnings"])
+    assert json.loads((tmp_path / "o" / "metrics.json").read_text())["warnings"] == printed["warnings"]
+    assert "jointctl: warning: a poor fit" in result.stderr
+
+
 @pytest.mark.parametrize("args, fragments", [
     (["one_dof", "--joint", "joint1", "--amplitude", "1"], ["amplitude", "at most 0.09669", "range binds", "1.0"]),
     (["one_dof", "--joint", "joint7"], ["--joint", "joint7"]),
