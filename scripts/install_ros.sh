@@ -3,7 +3,9 @@
 # master, rospy, actionlib, rostopic, rosbag, roslaunch/rosparam, the message packages, genpy and
 # genmsg (to generate the action messages jointctl ships as .action files), dynamic_reconfigure,
 # robot_state_publisher with visualization_msgs and tf2_msgs (serve's robot_description, the
-# spawned objects' markers, /tf in the tests). rviz (serve --rviz) is optional: apt-get install rviz.
+# spawned objects' markers, /tf in the tests), and Debian's numpy (a ROS user's machine has it: tf2 pulls it in;
+# the tests check that it on PYTHONPATH does not shadow the environment's). rviz (serve --rviz) is optional:
+# apt-get install rviz.
 # Debian packages these for its own /usr/bin/python3; the project's venv sees them through
 # --system-site-packages. Does nothing when everything is already installed.
 set -euo pipefail
@@ -14,6 +16,7 @@ PACKAGES=(
   ros-std-msgs ros-actionlib-msgs ros-geometry-msgs ros-sensor-msgs ros-trajectory-msgs
   python3-dynamic-reconfigure
   ros-robot-state-publisher python3-visualization-msgs ros-visualization-msgs python3-tf2-msgs ros-tf2-msgs
+  python3-numpy
 )
 source "$(dirname "$0")/apt_packages.sh"
 install_missing install_ros "${PACKAGES[@]}"

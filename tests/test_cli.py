@@ -42,6 +42,39 @@ def test_list_names_the_robot_and_scenarios():
         assert name in result.stdout
 
 
+#: Debian's own packages (ROS 1's rospy and actionlib, and its numpy 1.24, which tf2 pulls in).
+DEBIAN_PACKAGES = Path("/usr/lib/python3/dist-packages")
+
+
+def test_a_ros_users_pythonpath_does_not_shadow_the_environments_packages(tmp_path):
+    # A ROS user's shell: a sourced catkin workspace chains to Debian's ROS, so PYTHONPATH holds the
+    # workspace's devel space (its messages) and Debian's dist-packages, ahead of the environment's
+    # site-packages. The console script must still run on the environment's numpy, and import rospy and the
+    # workspace's messages from where PYTHONPATH says.
+    if not (DEBIAN_PACKAGES / "numpy").is_dir() or not (DEBIAN_PACKAGES / "rospy").is_dir():
+        if os.environ.get("JOINTCTL_REQUIRE_ROS"):
+            pytest.fail(f"JOINTCTL_REQUIRE_ROS is set but Debian's numpy or rospy is not in {DEBIAN_PACKAGES}")
+        pytest.skip(f"Debian's numpy and rospy are not installed in {DEBIAN_PACKAGES} (make ros)")
+    devel = tmp_path / "devel" / "lib" / "python3" / "dist-packages"
+    (devel / "my_robot_msgs").mkdir(parents=True)
+    (devel / "my_robot_msgs" / "__init__.py").write_text("")
+    source = Path(__file__).resolve().parents[1] / "src"  # this checkout's jointctl, first as in a developer's shell
+    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=f"{source}:{devel}:{DEBIAN_PACKAGES}")
+    script = Path(sys.executable).with_name("jointctl")
+    result = subprocess.run([str(script), "list"], capture_output=True, text=True, env=env, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "one_dof" in result.stdout
+    probe = ("import json, jointctl, numpy, rospy, my_robot_msgs; print(json.dumps([m.__file__ for m in "
+             "(jointctl, numpy, rospy, my_robot_msgs)]))")
+    found = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=120)
+    assert found.returncode == 0, found.stderr
+    jointctl_file, numpy_file, rospy_file, messages_file = map(Path, json.loads(found.stdout))
+    assert jointctl_file.is_relative_to(source)
+    assert numpy_file.is_relative_to(sys.prefix) and not numpy_file.is_relative_to(DEBIAN_PACKAGES)
+    assert rospy_file.is_relative_to(DEBIAN_PACKAGES)
+    assert messages_file.is_relative_to(devel)
+
+
 def test_run_writes_trace_metrics_and_figures(tmp_path):
     result = jointctl("run", "one_dof_step", "--out", tmp_path / "step", "--set", "duration_s=1.5")
     assert result.returncode == 0, result.stderr
@@ -217,6 +250,29 @@ def test_identify_writes_metrics_and_reads_its_own_trace_back(tmp_path):
                      "--out", tmp_path / "b")
     assert again.returncode == 0, again.stderr
     assert json.loads((tmp_path / "b" / "metrics.json").read_text())["mass_kg"] == pytest.approx(metrics["mass_kg"])
+
+
+def test_identify_reports_a_poor_fit_with_its_warning(tmp_path):
+    # A recorded joint whose effort is mostly noise (a torque reading three times noisier than the swing
+    # it should explain): the fit is reported, and says it is poor in metrics.json and in the result printed.
+    import numpy as np
+
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 6.0, 0.001)
+    qd = 0.3 * 2 * np.pi * 0.7 * np.cos(2 * np.pi * 0.7 * t)
+    q = 0.3 * np.sin(2 * np.pi * 0.7 * t)
+    effort = np.append(np.diff(qd) / 0.001, 0.0) + 10.0 * qd + 9.81
+    effort += rng.normal(0.0, 3.0 * np.std(effort), t.size)
+    trace = tmp_path / "trace.csv"
+    np.savetxt(trace, np.column_stack([t, q, qd, effort]), delimiter=",", comments="",
+               header="time_s,joint1.position,joint1.velocity,joint1.effort")
+    result = jointctl("identify", trace, "--joint", "joint1", "--joint-type", "prismatic", "--out", tmp_path / "o")
+    assert result.returncode == 0, result.stderr
+    printed = json.loads(result.stdout)
+    assert printed["r_squared"] < 0.95
+    assert any(w.startswith("a poor fit") for w in printed["warnings"])
+    assert json.loads((tmp_path / "o" / "metrics.json").read_text())["warnings"] == printed["warnings"]
+    assert "jointctl: warning: a poor fit" in result.stderr
 
 
 @pytest.mark.parametrize("args, fragments", [

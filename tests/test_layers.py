@@ -13,8 +13,9 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "jointctl"
-#: Shared helpers below every layer (the package root's ``__init__`` holds only the version).
-FOUNDATION = ("jointctl", "errors", "validate", "paths")
+#: Shared helpers below every layer (the package root's ``__init__`` holds the version and puts the
+#: environment's packages first: python_path).
+FOUNDATION = ("jointctl", "errors", "validate", "paths", "python_path")
 #: Every package of jointctl, bottom to top: each may import only those before it (and the foundation).
 #: wire: pure codecs; model ... runtime: the loop; then the edges, each family its own package (sweep runs
 #: scenarios and may use identification's designs).

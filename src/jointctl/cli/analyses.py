@@ -153,6 +153,7 @@ def _identify(args: argparse.Namespace) -> int:
                                        f_end_hz=args.f_end_hz, fit_friction=friction, safety=safety,
                                        plant=_plant_file(args.plant))
     print(metrics_json(metrics))
+    say_warnings(metrics)
     print(f"wrote {args.out}/", file=sys.stderr)
     return 0
 

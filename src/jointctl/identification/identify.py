@@ -15,8 +15,9 @@ The recorded position, velocity and applied effort are fitted by
 recorded motion puts on the joint, computed from the robot's model
 (:mod:`~jointctl.identification.coupling`). On hardware that servos the joint itself (a
 robot another node serves on the ROS graph) :func:`identify_servoed` sends the same chirp to the
-joint's position loop and fits the states as they arrived; :func:`identify_states` fits states
-recorded elsewhere (a rosbag), :func:`identify_trace` a ``trace.csv``.
+joint's position loop and fits the states as they arrived (:func:`fit_states`, their grid by
+:func:`on_grid`); :func:`identify_states` fits states recorded elsewhere (a rosbag),
+:func:`identify_trace` a ``trace.csv``.
 
 Outputs (``out_dir``): ``trace.csv`` (robot runs), ``identify_<joint>.png`` (measured effort
 against the fitted model's, and the position) and ``metrics.json``: ``mass_kg`` /
@@ -25,15 +26,20 @@ against the fitted model's, and the position) and ``metrics.json``: ``mass_kg`` 
 ``gravity_cos_n_m`` on a revolute one, each with ``*_ci95``, and the fit's residual; ``coupling``
 ("model" or "none": states of one joint only) and ``coupling_rms`` [N or N·m], with ``coupling_pose``
 (the others' positions the inertia is for) and the model's own ``model_inertia_kg_m2`` / ``model_mass_kg``
-there; ``data``: samples received, given to the fit and fitted, the gaps cut (``at_s``, ``length_s``),
-``span_s``, ``usable_s`` and ``share_used`` (of the recording; ``excitation_share_used`` of the
-excitation). ``metrics.json`` is strict JSON: a figure that is not a finite number (not measured, or
-unbounded) is ``null`` (:mod:`jointctl.recording.metrics_file`).
+there; ``sample_period_s`` and ``acceleration`` (the differences); ``data``: samples received, given to
+the fit and fitted, the ``outliers`` and all rows ``left_out`` (see
+:mod:`~jointctl.identification.plant_fit`), the number of ``gaps`` and the longest ``GAPS_LISTED`` of
+them cut (``at_s``, ``length_s``), ``span_s``, ``usable_s`` and ``share_used`` (of the recording;
+``excitation_share_used`` of the excitation); ``warnings``: what makes the figures doubtful
+(:func:`fit_warnings`), which the command line prints too. ``metrics.json`` is strict JSON: a figure
+that is not a finite number (not measured, or unbounded) is ``null``
+(:mod:`jointctl.recording.metrics_file`).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -43,8 +49,8 @@ from jointctl.errors import ConfigError
 from jointctl.identification.coupling import Coupling, chain_coupling
 from jointctl.identification.excitation import Chirp, plan_identification
 from jointctl.identification.frequency_response import held_reference, servo_reference, session_gravity
-from jointctl.identification.plant_fit import (MIN_SAMPLES, IdentificationError, PlantFit, difference_rows,
-                                               fit_plant, resample_uniform, stretches)
+from jointctl.identification.plant_fit import (MAX_SHIFT_CYCLES, MIN_SAMPLES, IdentificationError, PlantFit,
+                                               difference_rows, fit_plant, resample_uniform, stamp_period, stretches)
 from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Guard, Safety, SaturationMonitor, run_guarded,
                                             saturation_text)
 from jointctl.scenario.session import Session
@@ -58,6 +64,13 @@ from jointctl.recording.units import joint_units
 SETTLE_S = 1.0
 #: Rest after it, for the joint to come to rest again [s].
 SETTLE_AFTER_S = 2.0
+#: A fit whose model explains less of the effort's variance than this is reported with a warning.
+R_SQUARED_WARNING = 0.95
+#: ... as is one that left more than this share of its rows out (outliers and, at sparse rates, their
+#: neighbours): a robust fit vouches for a majority only.
+LEFT_OUT_WARNING = 0.5
+#: metrics.json lists the longest this many gaps cut (``data.gaps`` counts them all).
+GAPS_LISTED = 20
 
 
 def identify_on_robot(scenario: Scenario, joint: str, *, out_dir: str | Path | None = None,
@@ -102,7 +115,7 @@ def identify_in_session(session, joint: str, *, out_dir: str | Path | None = Non
                               gravity_m_s2=session.manager.context.gravity_m_s2)
     fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction,
                     coupling_torque=coupling.torque, inertia_scale=coupling.inertia_scale)
-    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u, coupling)
+    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u, coupling, loop_period_s=session.loop.period_s)
 
 
 def identify_servoed(session: Session, joint: str, *, out_dir: str | Path | None = None,
@@ -126,50 +139,81 @@ def identify_servoed(session: Session, joint: str, *, out_dir: str | Path | None
                          f_start_hz=f_start_hz, f_end_hz=f_end_hz, safety=safety, plant=plant,
                          start=held_reference(hardware, joint))
     stamps, positions, velocities, efforts = hardware.recorded_all(joint)
+    k = hardware.joint_index(joint)
+    states = fit_states(session.robot, joint, hardware.joint_names, stamps, positions, velocities,
+                        [row[k] for row in efforts], loop_period_s=session.loop.period_s,
+                        gravity_m_s2=session.scenario.gravity_m_s2, fit_friction=fit_friction)
+    return states.fit, _finish(states.fit, joint, excitation, out_dir, states.t, states.q, states.qd, states.u,
+                               states.coupling, received=len(stamps), loop_period_s=session.loop.period_s)
+
+
+@dataclass(frozen=True)
+class FittedStates:
+    """Joint states fitted (:func:`fit_states`): the fit, and what it was fitted to on its grid: ``t`` [s]
+    from 0, the joint's ``q``, ``qd``, ``u``, and the chain's ``coupling``."""
+
+    fit: PlantFit
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    u: np.ndarray
+    coupling: Coupling
+
+
+def fit_states(robot, joint: str, joint_names, stamps, positions, velocities, effort, *, loop_period_s: float,
+               gravity_m_s2=(0.0, 0.0, -9.81), fit_friction: bool = True) -> FittedStates:
+    """Fit ``joint`` of ``robot`` from joint states as they arrived: ``stamps`` [s], every joint's
+    ``positions`` and ``velocities`` (one row per state, columns in the order of ``joint_names``) and
+    the joint's ``effort``, from a control loop of ``loop_period_s`` [s], put on a grid
+    (:func:`on_grid`); the other joints' load comes off with the robot's model (:func:`chain_coupling`)."""
+    n = len(joint_names)
+    t, columns, every_cycle = on_grid(stamps, [*np.asarray(positions, dtype=float).T,
+                                               *np.asarray(velocities, dtype=float).T, effort], loop_period_s)
+    q_all, qd_all, u = np.column_stack(columns[:n]), np.column_stack(columns[n:2 * n]), columns[-1]
+    acceleration = "forward" if every_cycle else "central"
+    coupling = chain_coupling(robot, joint, joint_names, t, q_all, qd_all, gravity_m_s2=gravity_m_s2,
+                              acceleration=acceleration)
+    k = list(joint_names).index(joint)
+    q, qd = q_all[:, k], qd_all[:, k]
+    fit = fit_plant(t, q, qd, u, joint_type=robot.joint(joint).type, fit_friction=fit_friction,
+                    acceleration=acceleration, max_shift_cycles=MAX_SHIFT_CYCLES if every_cycle else 0,
+                    coupling_torque=coupling.torque, inertia_scale=coupling.inertia_scale)
+    return FittedStates(fit, t, q, qd, u, coupling)
+
+
+def on_grid(stamps, columns, loop_period_s: float) -> tuple[np.ndarray, list[np.ndarray], bool]:
+    """(``t`` [s] from 0, ``columns`` on it, whether the states came every cycle) for joint states
+    stamped ``stamps`` [s] from a loop of ``loop_period_s`` (:func:`resample_uniform`). States of every
+    cycle (their period under 1.5 loop periods) keep their cycles' grid and are fitted with forward
+    differences and the effort's alignment searched (0 to ``MAX_SHIFT_CYCLES`` cycles); sparser ones
+    (joint states at 50 Hz from a 1 kHz loop) are interpolated onto a grid of their period and fitted
+    with central differences, the effort where it was sampled (a shift of one sample would be twenty
+    cycles: the search would only fit the noise)."""
     if len(stamps) < MIN_SAMPLES:
         raise IdentificationError(f"too few joint states to fit (at least {MIN_SAMPLES})", field="samples",
                                   value=len(stamps))
-    k, n = hardware.joint_index(joint), len(hardware.joint_names)
-    # Every joint's states on the grid (the chain's motion loads this joint), the joint's effort beside them.
-    t, *columns = resample_uniform(np.asarray(stamps, dtype=float) - stamps[0], *np.asarray(positions).T,
-                                   *np.asarray(velocities).T, np.asarray([row[k] for row in efforts], dtype=float))
-    q_all, qd_all, u = np.column_stack(columns[:n]), np.column_stack(columns[n:2 * n]), columns[-1]
-    acceleration = differences_for(t, session.loop.period_s)
-    coupling = chain_coupling(session.robot, joint, hardware.joint_names, t, q_all, qd_all,
-                              gravity_m_s2=session.scenario.gravity_m_s2, acceleration=acceleration)
-    q, qd = q_all[:, k], qd_all[:, k]
-    fit = fit_plant(t, q, qd, u, joint_type=session.robot.joint(joint).type, fit_friction=fit_friction,
-                    acceleration=acceleration, coupling_torque=coupling.torque, inertia_scale=coupling.inertia_scale)
-    return fit, _finish(fit, joint, excitation, out_dir, t, q, qd, u, coupling, received=len(stamps))
-
-
-def differences_for(t: np.ndarray, loop_period_s: float) -> str:
-    """"forward" for samples of every control period of a loop of ``loop_period_s``, else "central"."""
-    return "forward" if stretches(t).dt < 1.5 * loop_period_s else "central"
+    stamps = np.asarray(stamps, dtype=float)
+    period = stamp_period(np.unique(stamps))
+    every_cycle = period < 1.5 * loop_period_s
+    t, *on = resample_uniform(stamps - stamps.min(), *(np.asarray(c, dtype=float) for c in columns),
+                              cycles=every_cycle, period_s=period)
+    return t, on, every_cycle
 
 
 def identify_states(stamps, q, qd, u, joint: str, joint_type: str, *, source: str, loop_period_s: float = 0.001,
                     out_dir: str | Path | None = None, fit_friction: bool = True) -> tuple[PlantFit, dict]:
     """Fit ``joint`` from joint states as they were received (``stamps`` [s], not necessarily
-    uniform: a bag, a subscriber), put on a uniform grid (:func:`resample_uniform`); differences as
-    :func:`differences_for` picks for a loop of ``loop_period_s``. ``source`` names where they came from."""
-    fit, t, q, qd, u = _fit_states(stamps, q, qd, u, joint_type, loop_period_s=loop_period_s,
-                                   fit_friction=fit_friction)
-    metrics = _metrics(fit, joint, received=len(stamps))
-    metrics.update(trace=source, sample_period_s=stretches(t).dt)
+    uniform: a bag, a subscriber) from a loop of ``loop_period_s``, put on a grid (:func:`on_grid`;
+    one joint: no coupling). ``source`` names where they came from."""
+    t, (q, qd, u), every_cycle = on_grid(stamps, [q, qd, u], loop_period_s)
+    fit = fit_plant(t, q, qd, u, joint_type=joint_type, fit_friction=fit_friction,
+                    acceleration="forward" if every_cycle else "central",
+                    max_shift_cycles=MAX_SHIFT_CYCLES if every_cycle else 0)
+    metrics = _metrics(fit, joint, received=len(stamps), loop_period_s=loop_period_s)
+    metrics["trace"] = source
     if out_dir is not None:
         _write(out_dir, joint, fit, metrics, t, q, qd, u)
     return fit, metrics
-
-
-def _fit_states(stamps, q, qd, u, joint_type: str, *, loop_period_s: float, fit_friction: bool):
-    """(fit, t, q, qd, u): states as received, on a uniform grid from t = 0, fitted."""
-    if len(stamps) < 50:
-        raise IdentificationError("too few joint states to fit (at least 50)", field="samples", value=len(stamps))
-    t, q, qd, u = resample_uniform(np.asarray(stamps, dtype=float) - stamps[0], q, qd, u)
-    fit = fit_plant(t, q, qd, u, joint_type=joint_type, fit_friction=fit_friction,
-                    acceleration=differences_for(t, loop_period_s))
-    return fit, t, q, qd, u
 
 
 def _movable(robot, joint: str) -> None:
@@ -256,9 +300,10 @@ def loop_settings(session, joint: str) -> tuple[dict | None, str, bool, float | 
 
 
 def _finish(fit: PlantFit, joint: str, excitation: tuple[Chirp, float, float, dict], out_dir, t, q, qd, u,
-            coupling: Coupling | None = None, *, received: int | None = None) -> dict:
+            coupling: Coupling | None = None, *, received: int | None = None,
+            loop_period_s: float | None = None) -> dict:
     chirp, lower, upper, report = excitation
-    metrics = _metrics(fit, joint, received=len(t) if received is None else received)
+    metrics = _metrics(fit, joint, received=len(t) if received is None else received, loop_period_s=loop_period_s)
     start = t[0] + SETTLE_S  # the excitation's window, and the share of it the gaps left
     lost = sum(max(0.0, min(at + length, start + chirp.duration_s) - max(at, start)) for at, length in fit.gaps)
     metrics["data"]["excitation_share_used"] = 1.0 - lost / chirp.duration_s
@@ -297,7 +342,7 @@ def identify_trace(path: str | Path, joint: str, joint_type: str, *, out_dir: st
     return fit, metrics
 
 
-def _metrics(fit: PlantFit, joint: str, *, received: int | None = None) -> dict:
+def _metrics(fit: PlantFit, joint: str, *, received: int | None = None, loop_period_s: float | None = None) -> dict:
     prismatic = fit.joint_type == "prismatic"
     unit = {"inertia": "mass_kg" if prismatic else "inertia_kg_m2",
             "damping": "damping_n_s_m" if prismatic else "damping_n_m_s_rad",
@@ -314,12 +359,40 @@ def _metrics(fit: PlantFit, joint: str, *, received: int | None = None) -> dict:
         metrics["gravity_cos_n_m"] = fit.gravity_cos
     metrics.update(residual_rms=fit.residual_rms, r_squared=fit.r_squared, samples=fit.samples,
                    effort_shift_cycles=fit.effort_shift_cycles, coupling=fit.coupling,
-                   coupling_rms=fit.coupling_rms)
+                   coupling_rms=fit.coupling_rms, sample_period_s=fit.sample_period_s,
+                   acceleration=fit.acceleration)
+    listed = sorted(sorted(fit.gaps, key=lambda gap: -gap[1])[:GAPS_LISTED])
     metrics["data"] = {"samples_received": fit.samples_given if received is None else int(received),
                        "samples_given": fit.samples_given, "samples_fitted": fit.samples,
-                       "gaps_cut": [{"at_s": at, "length_s": length} for at, length in fit.gaps],
+                       "outliers": fit.outliers, "left_out": fit.left_out, "gaps": len(fit.gaps),
+                       "gaps_cut": [{"at_s": at, "length_s": length} for at, length in listed],
                        "span_s": fit.span_s, "usable_s": fit.usable_s, "share_used": fit.share_used}
+    metrics["warnings"] = fit_warnings(fit, loop_period_s)
     return metrics
+
+
+def fit_warnings(fit: PlantFit, loop_period_s: float | None = None) -> list[str]:
+    """What makes ``fit``'s figures doubtful, one sentence each (empty when nothing does): r² below
+    ``R_SQUARED_WARNING``, more than ``LEFT_OUT_WARNING`` of the rows left out; and then,
+    for states sparser than a control loop of ``loop_period_s`` [s], the rate they need and the
+    ros_control parameter that sets it."""
+    warnings = []
+    if fit.r_squared < R_SQUARED_WARNING:
+        warnings.append(f"a poor fit: the model explains only {fit.r_squared:.3g} of the effort's variance (r² below "
+                        f"{R_SQUARED_WARNING:g}), so its figures are not the joint's")
+    rows = fit.samples + fit.left_out
+    if rows and fit.left_out / rows > LEFT_OUT_WARNING:
+        share = 100 * fit.left_out / rows
+        warnings.append(f"{fit.left_out} of the {rows} samples where the joint moves ({share:.0f} %) were left out "
+                        f"({fit.outliers} outliers, their effort off the motion, and the samples next to them): "
+                        "the fit rests on fewer than half")
+    if warnings and fit.acceleration == "central" and loop_period_s:
+        rate = 1.0 / loop_period_s
+        warnings.append(f"the joint states came every {1e3 * fit.sample_period_s:.3g} ms, sparser than the "
+                        f"{rate:.4g} Hz control loop: each holds one cycle's effort, which the motion between them "
+                        f"does not show; publish them every cycle (joint_state_controller's publish_rate: {rate:g}) "
+                        "and identify again")
+    return warnings
 
 
 def _write(out_dir, joint, fit: PlantFit, metrics: dict, t, q, qd, u, coupling: Coupling | None = None) -> None:
@@ -351,4 +424,5 @@ def _write(out_dir, joint, fit: PlantFit, metrics: dict, t, q, qd, u, coupling: 
     write_metrics(out, metrics)  # strict JSON: a figure not measured or unbounded is null
 
 
-__all__ = ["Chirp", "identify_in_session", "identify_on_robot", "identify_servoed", "identify_states", "identify_trace"]
+__all__ = ["Chirp", "FittedStates", "fit_states", "fit_warnings", "identify_in_session", "identify_on_robot",
+           "identify_servoed", "identify_states", "identify_trace", "on_grid"]

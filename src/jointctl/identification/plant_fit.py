@@ -14,10 +14,21 @@ Samples: with ``acceleration="forward"`` (a trace of every control cycle), ``qdd
 velocity's forward difference, ``(qd[k+1] - qd[k]) / dt``, the acceleration the effort produced
 over that period. A recorder may log the effort a cycle before or after the motion it produced, so
 the fit tries effort shifts of 0 to ``max_shift_cycles`` cycles and keeps the one with the smallest
-residual (``effort_shift_cycles`` in the result). Samples sparser than the control loop (joint
+median residual (``effort_shift_cycles`` in the result). Samples sparser than the control loop (joint
 states at 50 Hz, a bag) take ``acceleration="central"``: ``(qd[k+1] - qd[k-1]) / 2dt``, centred on
 the sample whose position, speed and effort it is matched with (a forward difference there would
-sit half a sample late); :func:`resample_uniform` first puts such samples on a uniform grid.
+sit half a sample late); their callers try no shift (one sample is many cycles).
+:func:`resample_uniform` first puts samples that arrived over a network on a uniform grid, at the
+period of their stamps (:func:`stamp_period`).
+
+Outliers: a row far off the fit (a residual beyond ``OUTLIER_SIGMAS`` robust standard deviations
+and ``OUTLIER_FLOOR`` of the effort's spread) is left out and the fit made again, until nothing
+changes (``outliers`` in the result). Such rows hold what one sample cannot show: at 50 Hz a
+sample's effort is one cycle's, and a derivative kick in that cycle (a position command that
+arrived a cycle late, two steps at once) is not in the motion between samples; with sparse samples
+the rows whose central difference takes such a sample's velocity (that cycle's too) are left out
+with it (``left_out`` counts all). Every cycle recorded, the kicks are in the motion and fit; a row
+left out there spans a cycle that was lost unseen (its acceleration read twice over).
 
 Gaps: samples lost on the way (a dropped message, a 10 ms hiccup of a busy machine) are cut out, not
 invented. A step between samples longer than ``GAP_STEPS`` sampling periods (one lost sample is
@@ -48,6 +59,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy.ndimage import median_filter
+from scipy.optimize import minimize_scalar
 
 from jointctl.errors import JointCtlError
 
@@ -56,10 +69,21 @@ MOVING_FRACTION = 0.1
 #: A step between samples longer than this many sampling periods is a gap: samples were lost there.
 #: One lost sample makes a step of two periods; jitter of a stamp up to half a period is not a gap.
 GAP_STEPS = 1.5
+#: Samples around a stamp (it in the middle) whose median offset says how many loop cycles were lost before it.
+CYCLE_WINDOW = 15
+#: Most cycles a recorder may log the effort off the motion it produced (the shifts the fit tries).
+MAX_SHIFT_CYCLES = 2
 #: Fewest rows (samples whose differences lie inside one stretch) a fit takes.
 MIN_SAMPLES = 50
 #: Fewest of them where the joint moves.
 MIN_MOVING = 20
+#: A row whose residual is more than this many standard deviations (the residuals' robust one,
+#: 1.4826 times their median absolute deviation) off the fit is an outlier: left out, and the fit made again.
+OUTLIER_SIGMAS = 5.0
+#: ... and more than this share of the effort's standard deviation (a residual below it is the model's).
+OUTLIER_FLOOR = 0.01
+#: At most this many fits, each without the outliers of the one before.
+OUTLIER_PASSES = 5
 #: 95 % two-sided normal quantile.
 Z95 = 1.959963984540054
 
@@ -75,12 +99,15 @@ class PlantFit:
     """One joint's identified model. ``inertia`` [kg or kg·m²], ``damping`` [N·s/m or N·m·s/rad],
     ``friction`` (Coulomb) [N or N·m]; ``gravity_load`` [N] (prismatic, the constant load) or
     ``gravity_sin``/``gravity_cos`` [N·m] (revolute: the load is ``sin·sin(q) + cos·cos(q)``);
-    ``*_ci95`` their 95 % half-widths; ``residual_rms`` [N or N·m]; ``r_squared`` of the fit;
+    ``*_ci95`` their 95 % half-widths; ``residual_rms`` [N or N·m] and ``r_squared`` of the fit (over
+    the rows it kept), ``residual_median`` [N or N·m] the median absolute residual over every row;
     ``samples`` used (the rows of the least squares: where the joint moves, differences inside one
-    stretch); ``effort_shift_cycles`` the effort's alignment kept; ``acceleration`` the differences used
-    ("forward" or "central"). The data: ``samples_given`` samples in the fit's input, ``span_s`` [s] the
-    time they span, ``usable_s`` [s] the time of the stretches left after cutting ``gaps`` (each
-    ``(at_s, length_s)``: the time of the last sample before it and the step across it [s]). The chain:
+    stretch, not left out), ``outliers`` the rows left out as off the fit and ``left_out`` all rows left
+    out (with their neighbours, see the module docstring); ``effort_shift_cycles`` the effort's alignment
+    kept; ``acceleration`` the differences used ("forward" or "central"). The data: ``samples_given``
+    samples in the fit's input, ``sample_period_s`` [s] their period, ``span_s`` [s] the time they span,
+    ``usable_s`` [s] the time of the stretches left after cutting ``gaps`` (each ``(at_s, length_s)``:
+    the time of the last sample before it and the step across it [s]). The chain:
     ``coupling`` "model" when the other joints' load was subtracted (see the module docstring), "none"
     when not; ``coupling_rms`` [N or N·m] that load's RMS over the fitted rows."""
 
@@ -106,6 +133,10 @@ class PlantFit:
     gaps: tuple[tuple[float, float], ...] = ()
     coupling: str = "none"
     coupling_rms: float = 0.0
+    sample_period_s: float = 0.0
+    outliers: int = 0
+    left_out: int = 0
+    residual_median: float = 0.0
 
     @property
     def share_used(self) -> float:
@@ -129,13 +160,21 @@ class PlantFit:
         return asdict(self)
 
 
-def resample_uniform(time_s: ArrayLike, *columns: ArrayLike) -> tuple[np.ndarray, ...]:
-    """``(t, *columns)`` linearly interpolated onto a uniform grid at the period of ``time_s`` [s]
-    (:func:`sampling_period`; for samples that arrived over a network, stamped a little off their
-    period). A step longer than ``GAP_STEPS`` periods (samples lost) is not interpolated across: the
-    samples are split there and each stretch gets its own grid (at its stamps' median phase), so ``t``
-    jumps across the gap and :func:`fit_plant` cuts it. Interpolation only puts jittered stamps on the
-    grid; it never invents motion."""
+def resample_uniform(time_s: ArrayLike, *columns: ArrayLike, cycles: bool = False,
+                     period_s: float | None = None) -> tuple[np.ndarray, ...]:
+    """``(t, *columns)`` on a uniform grid at the period of the stamps ``time_s`` [s] (``period_s``, else
+    :func:`stamp_period`'s): samples that arrived over a network, stamped off their period. A step longer
+    than ``GAP_STEPS`` periods (samples lost) is never bridged: ``t`` jumps across it and
+    :func:`fit_plant` cuts the samples there.
+
+    ``cycles``: each sample is one cycle of the control loop (joint states published every cycle),
+    stamped when the cycle ran (ros_control's ``ros::Time::now()`` at the top of the cycle: late by the
+    loop's jitter) while its values are the cycle's. Such samples are not interpolated (at a jitter of a
+    third of a period, interpolating at the stamps makes a noise of half the acceleration, which the fit
+    reads as 20-40 % less inertia): each takes the grid point of its cycle (:func:`_cycle_numbers`), and
+    a cycle lost makes a gap. Otherwise (sparser samples, each many cycles apart) the columns are linearly interpolated
+    onto a grid of their own in each stretch between gaps (at its stamps' median phase): interpolation
+    only puts jittered stamps on the grid, it never invents motion."""
     t = np.asarray(time_s, dtype=float)
     if t.size < 2:
         raise IdentificationError(f"too few samples to fit (at least {MIN_SAMPLES})", field="samples",
@@ -145,10 +184,12 @@ def resample_uniform(time_s: ArrayLike, *columns: ArrayLike) -> tuple[np.ndarray
     keep = np.concatenate([[True], np.diff(t) > 0])
     t = t[keep]
     steps = np.diff(t)
-    dt = sampling_period(steps) if steps.size else 0.0
+    dt = (stamp_period(t) if period_s is None else float(period_s)) if steps.size else 0.0
     if not dt > 0:
         raise IdentificationError("the samples' time stamps do not advance", field="time_s", value=dt)
     values = [np.asarray(c, dtype=float)[order][keep] for c in columns]
+    if cycles:
+        return (t[0] + dt * _cycle_numbers(t, dt), *values)
     cuts = np.concatenate([[0], np.nonzero(steps > GAP_STEPS * dt)[0] + 1, [t.size]])
     grids, parts = [], [[] for _ in values]
     for a, b in zip(cuts[:-1], cuts[1:]):
@@ -166,6 +207,67 @@ def resample_uniform(time_s: ArrayLike, *columns: ArrayLike) -> tuple[np.ndarray
         for part, column in zip(parts, values):
             part.append(np.interp(grid, t[a:b], column[a:b]))
     return (np.concatenate(grids), *(np.concatenate(part) for part in parts))
+
+
+def _cycle_numbers(t: np.ndarray, dt: float) -> np.ndarray:
+    """The loop cycle of each of the increasing stamps ``t`` [s] (the first's is 0), a cycle ``dt`` [s]
+    long, each stamp late by up to a cycle (see :func:`resample_uniform`). A stamp's own lateness makes
+    its cycle ambiguous (one late by two thirds of a period is nearer the next cycle's time), but the
+    cycles lost before it are the same for its neighbours: the stamps' offset from ``dt`` per sample,
+    ``(t - t[0])/dt - index``, is that count plus the lateness, and its running median over
+    ``CYCLE_WINDOW`` samples is the count plus the typical lateness (its common fraction of a period,
+    taken off). The count never falls; a jump of it is a gap."""
+    offset = (t - t[0]) / dt - np.arange(t.size)
+    level = median_filter(offset, size=CYCLE_WINDOW, mode="nearest")
+    lateness = float(np.angle(np.mean(np.exp(2j * np.pi * level)))) / (2 * np.pi)
+    lost = np.maximum.accumulate(np.round(level - lateness)).astype(int)
+    return np.arange(t.size) + lost - lost[0]
+
+
+def stamp_period(time_s: ArrayLike) -> float:
+    """The period [s] of samples stamped ``time_s`` (increasing): the period whose whole multiples the
+    stamps sit on. Exactly spaced stamps (a simulation's, with gaps or not) give their median step. Stamps
+    late by a loop's jitter give the period at which their phases ``2π·t/T`` are most coherent
+    (:func:`_coherent_period`): each stamp is a whole number of periods after the first plus its
+    lateness, whichever cycles were lost. (Steps do not give it: a stamp late by a third of a period
+    makes the next step short, which is just when a publisher skips that cycle, so the steps left are
+    longer than the period: 3 % at the jitter of a real ros_control robot.)"""
+    t = np.asarray(time_s, dtype=float)
+    steps = np.diff(t)
+    dt = float(np.median(steps))
+    exact = (np.abs(steps - dt) <= 1e-9 * dt) | (steps > GAP_STEPS * dt)
+    if exact.all():
+        return dt
+    near = steps[np.abs(steps - dt) <= 0.5 * dt]  # a first guess: the steps near the median, averaged
+    return _coherent_period(t - t[0], float(np.mean(near)) if near.size else dt)
+
+
+def _coherent_period(t: np.ndarray, guess: float) -> float:
+    """The period within 10 % of ``guess`` [s] at which the phases of the stamps ``t`` [s] (from 0) are
+    most coherent (``|Σ exp(2πi·t/T)|`` largest), or ``guess`` when no period stands out of the
+    incoherent ``√N``. The peak is ``T²/span`` wide over stamps spanning ``span``: searched over the
+    first thousand periods on a grid a quarter of that fine, then on eight times as many stamps each
+    time around the best so far, ending with all of them and a bounded scalar search."""
+    def power(periods, stamps):
+        return np.abs(np.exp(2j * np.pi * stamps[:, None] / np.asarray(periods)[None, :]).sum(axis=0))
+
+    period, width, span = guess, 0.1 * guess, 1000 * guess
+    while True:
+        stamps = t[t <= span]
+        peak = period**2 / max(stamps[-1], period)
+        candidates = period + np.linspace(-width, width, 2 * math.ceil(4 * width / peak) + 1)
+        coherence = power(candidates, stamps)
+        best = int(np.argmax(coherence))
+        if coherence[best] < 4 * math.sqrt(stamps.size):
+            return guess
+        period = float(candidates[best])
+        if stamps.size == t.size:
+            break
+        width, span = 2 * peak, 8 * span
+    step = float(candidates[1] - candidates[0])
+    found = minimize_scalar(lambda p: -power([p], t)[0], bounds=(period - step, period + step), method="bounded",
+                            options={"xatol": 1e-12 * period})
+    return float(found.x)
 
 
 def sampling_period(steps: np.ndarray) -> float:
@@ -244,13 +346,14 @@ def accelerations(qd: np.ndarray, dt: float, shift: int, acceleration: str) -> t
 
 
 def fit_plant(time_s: ArrayLike, position: ArrayLike, velocity: ArrayLike, effort: ArrayLike, *,
-              joint_type: str, max_shift_cycles: int = 2, fit_friction: bool = True,
+              joint_type: str, max_shift_cycles: int = MAX_SHIFT_CYCLES, fit_friction: bool = True,
               acceleration: str = "forward", coupling_torque: ArrayLike | None = None,
               inertia_scale: ArrayLike | None = None) -> PlantFit:
     """Fit the joint model of the module docstring to ``time_s`` [s], ``position``, ``velocity`` and
     ``effort`` sampled at a uniform period, with gaps cut out (see the module docstring).
     ``joint_type``: ``"prismatic"``, ``"revolute"`` or ``"continuous"``; ``acceleration``:
-    ``"forward"`` or ``"central"`` differences. ``coupling_torque`` [N or N·m] (the other joints' load
+    ``"forward"`` or ``"central"`` differences; effort shifts of 0 to ``max_shift_cycles`` samples are
+    tried. ``coupling_torque`` [N or N·m] (the other joints' load
     on this one, per sample, computed with the same differences; NaN where undefined) and
     ``inertia_scale`` (``M_ii(q) / M_ii(q̄)`` per sample) come from
     :mod:`jointctl.identification.coupling`. Raises :class:`IdentificationError` when the data cannot
@@ -288,7 +391,7 @@ def fit_plant(time_s: ArrayLike, position: ArrayLike, velocity: ArrayLike, effor
     for shift in range(max_shift_cycles + 1):
         fit = _fit_with_shift(q, qd, u, split, shift, joint_type, peak, fit_friction, acceleration, coupling,
                               scale)
-        if best is None or fit.residual_rms < best.residual_rms:
+        if best is None or fit.residual_median < best.residual_median:
             best = fit
     return best
 
@@ -331,8 +434,18 @@ def _fit_with_shift(q, qd, u, split: Stretches, shift, joint_type, peak, fit_fri
         raise IdentificationError("the motion does not separate inertia, damping, friction and gravity "
                                   "(excite the joint with changing speed, in both directions)", field="samples",
                                   value=f"condition number {np.linalg.cond(a / np.where(norm == 0, 1, norm)):.3g}")
-    x, *_ = np.linalg.lstsq(a, b, rcond=None)
-    residual = b - a @ x
+    kept = _inliers(a, b)
+    outliers = int((~kept).sum())
+    if acceleration == "central":
+        # A sample whose effort is off the motion at 50 Hz holds one cycle's event (a derivative kick), and
+        # its velocity that cycle's too: the rows whose difference takes it are left out as well.
+        odd = np.zeros(q.size + 1, dtype=bool)
+        odd[rows[moving][~kept]] = True
+        kept &= ~(odd[rows[moving] - 1] | odd[rows[moving] + 1])
+    x, *_ = np.linalg.lstsq(a[kept], b[kept], rcond=None)
+    everywhere = b - a @ x
+    a, b = a[kept], b[kept]
+    residual = everywhere[kept]
     dof = max(len(b) - len(x), 1)
     sigma2 = float(residual @ residual) / dof
     cov = sigma2 * np.linalg.inv(a.T @ a)
@@ -350,11 +463,30 @@ def _fit_with_shift(q, qd, u, split: Stretches, shift, joint_type, peak, fit_fri
         residual_rms=math.sqrt(float(residual @ residual) / len(b)),
         r_squared=1.0 - float(residual @ residual) / total if total > 0 else 1.0,
         samples=int(len(b)), effort_shift_cycles=shift, acceleration=acceleration,
+        outliers=outliers, left_out=int((~kept).sum()), residual_median=float(np.median(np.abs(everywhere))),
         samples_given=int(q.size), span_s=split.span_s, usable_s=split.usable_s, gaps=split.gaps,
+        sample_period_s=split.dt,
         coupling="none" if coupling is None else "model",
-        coupling_rms=0.0 if coupling is None else float(np.sqrt(np.mean(load[moving] ** 2))),
+        coupling_rms=0.0 if coupling is None else float(np.sqrt(np.mean(load[moving][kept] ** 2))),
     )
 
 
-__all__ = ["GAP_STEPS", "IdentificationError", "MIN_SAMPLES", "PlantFit", "Stretches", "accelerations",
-           "difference_rows", "fit_plant", "resample_uniform", "sampling_period", "stretches"]
+def _inliers(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rows of ``a·x = b`` that are not outliers (see ``OUTLIER_SIGMAS``): fitted by least squares,
+    the rows far off the fit left out, fitted again without them, until nothing changes."""
+    kept = np.ones(len(b), dtype=bool)
+    floor = OUTLIER_FLOOR * float(np.std(b))
+    for _ in range(OUTLIER_PASSES):
+        x, *_ = np.linalg.lstsq(a[kept], b[kept], rcond=None)
+        residual = b - a @ x
+        spread = 1.4826 * float(np.median(np.abs(residual[kept] - np.median(residual[kept]))))
+        inliers = np.abs(residual) <= max(OUTLIER_SIGMAS * spread, floor)
+        if np.array_equal(inliers, kept) or inliers.sum() < MIN_MOVING:
+            break
+        kept = inliers
+    return kept
+
+
+__all__ = ["GAP_STEPS", "IdentificationError", "MAX_SHIFT_CYCLES", "MIN_SAMPLES", "PlantFit", "Stretches",
+           "accelerations", "difference_rows", "fit_plant", "resample_uniform", "sampling_period", "stamp_period",
+           "stretches"]

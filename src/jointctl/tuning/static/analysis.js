@@ -87,6 +87,7 @@
          ["Coulomb friction", withCi(r, "friction_n_m", "N·m")],
          ["gravity sin, cos", fmt(r.gravity_sin_n_m) + ", " + fmt(r.gravity_cos_n_m) + " N·m"]];
     rows.push(["fit R²", fmt(r.r_squared, 6)]);
+    for (const warning of r.warnings || []) rows.push(["warning", warning]);  // a doubtful fit says why
     table(rows);
   }
 
