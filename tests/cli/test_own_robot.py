@@ -117,7 +117,10 @@ def test_identify_bode_and_autotune_take_the_folder(folder, capsys) -> None:
                         "--zeta", "0.7", "--out", "tuned")
     written = read_yaml(tuned["yaml"])["planar_arm"]["elbow_position_controller"]["pid"]
     assert written["p"] == pytest.approx(tuned["gains"]["p"]) and tuned["derivative"] == "error"
-    assert tuned["model"]["bandwidth_hz"] == pytest.approx(6.0, rel=1e-3)  # the design's promise, on its model
+    # The promise is the step's: ζ 0.7's 4.6 % at the 0.1 rad step, whose derivative kick the effort limit clamps
+    # (so the gains differ from the small-step design, whose bandwidth is 6 Hz: said in the note).
+    assert tuned["model"]["overshoot_pct"] == pytest.approx(4.6, abs=0.1) and "kick" in tuned["note"]
+    assert tuned["robot"]["step_overshoot_pct"] == pytest.approx(4.6, abs=3.0)
     # On the arm the shoulder's loop (about 3 Hz) takes up part of the elbow's motion: the one-joint
     # design measures less than it promised there.
     assert 0 < tuned["robot"]["bandwidth_hz"] < 6.0 and math.isfinite(tuned["robot"]["step_zeta"])
@@ -132,9 +135,9 @@ def test_inits_step_scenario_runs_its_analysis_against_the_gravity_theory(folder
     # The P loop rests where p·(r - q) balances the load: the theory's sag, measured to 2 %.
     expected = metrics["expected"]["steady_state_error_rad"]
     assert expected < -0.02 and metrics["steady_state_error_rad"] == pytest.approx(expected, rel=0.02)
-    # The designed loop (ζ 0.7 with the derivative on the error, on a chain) does not overshoot enough
-    # to fit an oscillation: the figures read off the samples stand and the note says why.
-    assert metrics["natural_frequency_rad_s"] is None and "no overshoot" in metrics["fit_note"]
     assert metrics["settling_time_s"] > 0 and metrics["rise_time_s"] > 0
-    # Its first cycle asks the derivative kick d·step/period, clamped at the effort limit: said.
-    assert any("limit" in w for w in metrics["warnings"]) and "warning:" in err
+    # The step is ramped (a step's derivative kick d·step/period would clamp the effort): nothing saturated.
+    assert "ramp_s" in read_yaml(folder / "scenarios" / "step_shoulder.yaml")["commands"][
+        "shoulder_position_controller"]
+    assert metrics["effort_saturated_share_after_step"] == 0.0
+    assert not any("limit" in w for w in metrics["warnings"])

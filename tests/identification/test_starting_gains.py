@@ -49,7 +49,7 @@ def test_every_loop_holds_its_load_and_its_step_fits_the_effort_limit(default_lo
 
 def test_a_loop_stiff_enough_already_keeps_the_bandwidth_asked(arm) -> None:
     elbow = starting_gains(arm, bandwidth_hz=12.0)[1]
-    assert elbow.bandwidth_hz == 12.0 and elbow.note == ""
+    assert elbow.bandwidth_hz == 12.0 and "raised" not in elbow.note and "lowered" not in elbow.note
     # The design's own promise, on its model: the closed loop's -3 dB point at 12 Hz.
     model = LoopModel(elbow.inertia, elbow.damping, elbow.gains["p"], 0.0, elbow.gains["d"], 0.001, "position",
                       "error")
@@ -93,3 +93,52 @@ def test_bad_specs_are_refused(arm, kwargs, field) -> None:
     with pytest.raises(ConfigError) as caught:
         starting_gains(arm, **kwargs)
     assert caught.value.field == field
+
+
+@pytest.fixture(scope="module")
+def vertical_loops(tmp_path_factory):
+    """The 3-joint arm vertical at home (tests/user_arms.py), at the default spec."""
+    from tests import user_arms
+
+    robot = load_robot_model(user_arms.write(tmp_path_factory.mktemp("vertical"), "vertical_arm"))
+    return {loop.joint: loop for loop in starting_gains(robot)}
+
+
+def _bandwidth_gain_db(loop, p: float, hz: float) -> float:
+    model = LoopModel(loop.inertia, loop.damping, p, 0.0, loop.gains["d"], 0.001, "position", "error")
+    gain, _ = model.response([hz])
+    return float(gain[0])
+
+
+def test_a_joint_damped_beyond_the_spec_by_its_own_bearing_gets_d_0_and_its_zeta_said(vertical_loops) -> None:
+    from tests import user_arms
+
+    yaw = vertical_loops["base_yaw"]
+    assert yaw.gains["d"] == 0.0 and yaw.bandwidth_hz == 2.0
+    assert _bandwidth_gain_db(yaw, yaw.gains["p"], 2.0) == pytest.approx(-3.0103, abs=0.01)  # still 2 Hz
+    zeta = user_arms.YAW_DAMPING / (2 * math.sqrt(yaw.gains["p"] * yaw.inertia))
+    assert zeta > 0.7 and f"d = 0" in yaw.note and f"(ζ {zeta:.3g})" in yaw.note
+
+
+def test_a_joint_balanced_above_its_axis_gets_the_tipping_stiffness_added_to_p(vertical_loops) -> None:
+    """The forearm stands on the elbow: gravity pulls it away by m·g·l/2 per radian; the loop's stiffness is p
+    less that, so p is that much more than the 2 Hz design (whose -3 dB point the net stiffness keeps)."""
+    from tests import user_arms
+
+    elbow = vertical_loops["elbow_pitch"]
+    tipping = user_arms.FOREARM[0] * user_arms.GRAVITY * user_arms.FOREARM[1] / 2
+    assert elbow.inertia == pytest.approx(user_arms.ELBOW_INERTIA, rel=1e-3)
+    assert f"p raised by {tipping:.3g}" in elbow.note
+    assert _bandwidth_gain_db(elbow, elbow.gains["p"] - tipping, elbow.bandwidth_hz) == pytest.approx(-3.0103,
+                                                                                                       abs=0.05)
+
+
+def test_a_step_whose_kick_would_clamp_is_ramped_until_it_fits(vertical_loops) -> None:
+    for loop in vertical_loops.values():
+        allowed = EFFORT_FRACTION * loop.effort_limit
+        if loop.gains["d"] * loop.step / 0.001 > allowed:
+            assert loop.ramp_s > 0 and "ramps over" in loop.note
+            assert loop.gains["d"] * loop.step / loop.ramp_s <= 0.5 * (allowed - loop.gravity_load) * (1 + 1e-9)
+        else:
+            assert loop.ramp_s == 0.0
+        assert 0 < loop.peak_effort <= allowed and loop.step_at_s >= 0.5
