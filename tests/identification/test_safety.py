@@ -22,7 +22,8 @@ from jointctl.identification.frequency_response import bode, measure, measure_in
 from jointctl.identification.identify import identify_on_robot
 from jointctl.identification.plan import plan_bode
 from jointctl.identification.plant_fit import IdentificationError
-from jointctl.identification.safety import Safety, SafetyStop, UserLimits, parse_workspace
+from jointctl.identification.safety import Safety, SafetyStop, UserLimits, envelope_for, parse_workspace
+from jointctl.model.loader import load_robot_model
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import scenario_for_robot
 from tests.identification.variants import DAMPING, G, KP, MASS_KG, one_dof_variant, plant
@@ -68,7 +69,7 @@ def test_fractions_outside_zero_to_one_are_refused() -> None:
 def test_the_planned_sines_keep_the_loops_effort_within_half_of_max_effort() -> None:
     """The rule against the model: with --max-effort 40 N, each sine's effort (theory) plus the weight is at
     most half of 40 N, and where the effort binds the safe amplitude is the one that makes it half of 40 N;
-    its swing, droop included, at most 0.3 of the 0.5 m of room; and above the resonance the amplitude
+    its swing at most 0.3 of the room from where it rests (0.5 m less the droop); and above the resonance the amplitude
     shrinks as the effort grows. The timetable simulated on the model (each change of frequency included)
     peaks at the budget, never above: a sine after the resonance is made smaller than its steady state
     allows (by up to a sixth here) for the ringing the change leaves."""
@@ -81,7 +82,7 @@ def test_the_planned_sines_keep_the_loops_effort_within_half_of_max_effort() -> 
         t, effort = continuous(row["frequency_hz"])
         a = row["amplitude"]
         assert a * effort + WEIGHT <= budget * (1 + SAMPLED)
-        assert a * max(1.0, t) + DROOP <= 0.3 * 0.5 * (1 + SAMPLED)
+        assert a * max(1.0, t) <= 0.3 * (0.5 - DROOP) * (1 + SAMPLED)  # the room where it really rests
         assert row["predicted"]["effort"]["peak"] <= budget * (1 + 1e-9)  # the model's own prediction
         assert a <= row["safe_amplitude"]
         if row["binds"] == "effort":
@@ -94,12 +95,13 @@ def test_the_planned_sines_keep_the_loops_effort_within_half_of_max_effort() -> 
 
 
 def test_a_plan_without_a_user_limit_is_bound_by_the_range_where_the_loop_is_gentle() -> None:
-    """No --max-effort: the piston's 1000 N leaves the position budget binding: (0.15 m - droop)/max(1, |T|)."""
+    """No --max-effort: the piston's 1000 N leaves the position budget binding: 0.3 of the room from where the
+    piston really rests, the droop m·g/p below its reference, over max(1, |T|)."""
     plan = plan_bode(scenario_for_robot("one_dof", "position"), CONTROLLER, [0.5, 20.0])
     for row in plan["rows"]:
         t, _ = continuous(row["frequency_hz"])
         assert row["binds"] == "position"
-        assert row["safe_amplitude"] == pytest.approx((0.15 - DROOP) / max(1.0, t), rel=SAMPLED)
+        assert row["safe_amplitude"] == pytest.approx(0.3 * (0.5 - DROOP) / max(1.0, t), rel=SAMPLED)
 
 
 def test_the_robot_swept_inside_the_plan_stays_inside_the_effort_budget_and_does_not_saturate() -> None:
@@ -228,3 +230,20 @@ def test_a_velocity_loops_way_back_drives_the_joint_to_where_it_started() -> Non
     # The fade (1 s, drifting out 0.05 rad), 0.2 rad back at the capped 0.1 rad/s (2 s), the exponential
     # tail from 0.1 to 0.03 rad (1.2 s) and the 0.5 s at rest: about 5 s, 6.2 s with the blends.
     assert 4.5 < t - guard.trip["time_s"] < 7.5
+
+
+def test_the_room_is_read_where_a_soft_loop_really_rests(tmp_path) -> None:
+    """The yaw/pitch arm's shoulder (1.77 N·m at home, ±2.5 rad) held at 0 by p = 2 N·m/rad: load/p at the
+    reference is 0.88 rad, more than 0.3 of the 2.5 rad of room; but the arm droops to where 2·q = 1.77·cos q
+    (the load falls as it droops), 0.66 rad, mid-range: the room is read from there, not refused."""
+    from scipy.optimize import brentq
+
+    from tests import user_arms
+
+    robot = load_robot_model(user_arms.write(tmp_path, "yaw_pitch_arm"))
+    envelope = envelope_for(robot, "shoulder_pitch", 0.0, pose={"base_yaw": 0.0, "shoulder_pitch": 0.0},
+                            droop_gain=2.0)
+    rest = brentq(lambda q: 2.0 * q - user_arms.SHOULDER_LOAD_NM * math.cos(q), 0.0, 1.5)
+    assert envelope.resting_at == pytest.approx(rest, abs=1e-4) and envelope.droop == pytest.approx(rest, abs=1e-4)
+    assert envelope.budgets()["position"] == pytest.approx(0.3 * (2.5 - rest), abs=1e-4)
+    envelope.check()  # room to move: no refusal

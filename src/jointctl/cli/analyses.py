@@ -392,7 +392,9 @@ def _autotune(args: argparse.Namespace) -> int:
         from jointctl.identification.plan import plan_autotune
 
         return _print_plan(plan_autotune(_loop_scenario(args), args.controller, bandwidth_hz=bandwidth_hz, zeta=zeta,
-                                         step=args.step, plant=plant, safety=safety, settling_s=settling_s))
+                                         step=args.step, plant=plant, safety=safety, settling_s=settling_s,
+                                         ramp_s=args.ramp_s, remedies=tuple(args.remedy),
+                                         integrator="euler" if args.hardware == "sim" else "hold"))
     if args.hardware == "ros":
         from jointctl.identification.autotune import autotune_servoed
 

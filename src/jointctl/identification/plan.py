@@ -20,7 +20,7 @@ import numpy as np
 from jointctl.control.joint_controllers import derivative_law
 from jointctl.control.manager import read_yaml, set_dotted
 from jointctl.errors import ConfigError
-from jointctl.identification.autotune import _gravity_load, tune
+from jointctl.identification.autotune import DEFAULT_STEP, _gravity_load, scenario_move, tune
 from jointctl.identification.excitation import plan_identification
 from jointctl.identification.frequency_response import (LoopModel, loop_model, plan_summary, plan_sweep,
                                                          plant_friction)
@@ -130,10 +130,13 @@ def plan_bode(scenario, controller: str | None, frequencies_hz, *, amplitude: fl
             "rows": plan["rows"]}
 
 
-def plan_autotune(scenario, controller: str, *, bandwidth_hz: float, zeta: float = 0.7, step: float,
-                  plant: dict | None = None, safety: Safety | None = None, settling_s: float | None = None) -> dict:
-    """``autotune``'s plan: the gains designed for the spec, the check step and its predicted peaks,
-    and the check sweep's amplitudes (see the module docstring)."""
+def plan_autotune(scenario, controller: str, *, bandwidth_hz: float, zeta: float = 0.7, step: float | None,
+                  plant: dict | None = None, safety: Safety | None = None, settling_s: float | None = None,
+                  ramp_s: float | None = None, remedies: tuple[str, ...] = (), integrator: str = "euler") -> dict:
+    """``autotune``'s plan: the gains designed for the spec at the step (``step``, else the scenario's, else
+    autotune's default), the step's predicted peaks, and the check sweep's amplitudes (see the module
+    docstring); ``integrator`` as :func:`~jointctl.identification.autotune.tune`'s ("euler": the simulated
+    robot; "hold": a real one)."""
     robot = load_robot_model(scenario.robot.description)
     config = configured_loop(scenario, robot, controller=controller)
     joint, loop = config["joint"], config["loop"]
@@ -141,9 +144,16 @@ def plan_autotune(scenario, controller: str, *, bandwidth_hz: float, zeta: float
     gravity = None if plant is not None else _gravity_load(robot, pose, joint, scenario.gravity_m_s2)
     spec = robot.joint(joint)
     effort_limit = spec.limits.effort if spec.limits is not None and spec.limits.effort > 0 else math.inf
+    move = scenario_move(scenario, controller)
+    reference = None
+    if step is None and move is not None:
+        step, reference = move["step"], move["from"]
+        ramp_s = move["ramp_s"] if ramp_s is None else ramp_s
+    step = DEFAULT_STEP if step is None else step
     result = tune(controller, joint, loop, scenario.loop_period_s, plant, robot, pose, gravity, effort_limit,
                   config["gains"], bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s,
-                  derivative=config["derivative"], safety=safety, gravity_m_s2=scenario.gravity_m_s2)
+                  derivative=config["derivative"], safety=safety, gravity_m_s2=scenario.gravity_m_s2,
+                  ramp_s=ramp_s or 0.0, reference=reference, remedies=remedies, integrator=integrator)
     gains = result["gains"]
     model = LoopModel(result["mass"], result["damping"], gains["p"], gains["i"], gains["d"], scenario.loop_period_s,
                       loop, config["derivative"])

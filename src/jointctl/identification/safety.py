@@ -12,15 +12,17 @@ the controller's gains and derivative law at the loop period:
 :class:`~jointctl.identification.frequency_response.LoopModel`; a sine's steady state at ``f``, the
 chirp simulated from rest). The largest safe amplitude is the smallest of::
 
-    position  A·max(1, P) + droop        ≤ range_fraction  · room
+    position  A·max(1, P)                ≤ range_fraction  · room where it really rests
     velocity  A·V                        ≤ speed_fraction  · min(URDF velocity, --max-velocity)
     effort    A·(E + k·P) + k·droop + load ≤ effort_fraction · min(URDF effort, --max-effort)
 
 ``room`` [m or rad] is the distance from where the joint rests to the nearer end of its URDF range
 intersected with ``--workspace`` (one unit each way for a joint with no range); the reference itself
 stays inside too (the 1 in ``max(1, P)``; for a velocity loop the reference's own swing ``A/ω``).
-``droop`` is the static error ``|gravity|/p`` of a position loop without an integral or gravity
-feed-forward; ``load`` [N or N·m] the gravity load where the joint rests (the robot model at the pose)
+``droop`` is the static error of a position loop without an integral or gravity feed-forward, where
+``p·(r - q) = τ_hold(q)`` (:func:`real_rest`: the load where the joint droops to, not at the reference); the
+room is read from there, where the joint really rests (and from the reference, whose own swing stays inside
+too); ``load`` [N or N·m] the gravity load where the joint rests (the robot model at the pose)
 plus the Coulomb friction (``--plant``'s, else the URDF's), and ``k`` [N/m or N·m/rad] the largest
 gravity stiffness ``|∂gravity/∂q|`` over the positions the position budget allows: the gravity load
 anywhere in the swing is at most ``load + k·swing``, whatever feed-forward supplies it. The
@@ -167,6 +169,7 @@ class Envelope:
     droop: float = 0.0
     unit: str = "rad"
     stiffness: float = 0.0
+    resting_at: float | None = None
 
     @property
     def window(self) -> tuple[float, float]:
@@ -195,11 +198,23 @@ class Envelope:
         user = self.safety.limits.max_effort
         return min(self.effort_limit, user) if user is not None else self.effort_limit
 
+    @property
+    def room_at_rest(self) -> float:
+        """The room [m or rad] where the joint really rests: from ``resting_at`` (a P loop's droop below its
+        reference ``rest``) to the nearer end of :attr:`window`, and no more than from the reference (whose
+        own swing stays inside too); :attr:`room` without a droop."""
+        if self.resting_at is None:
+            return self.room
+        lower, upper = self.window
+        room = min(self.resting_at - lower, upper - self.resting_at)
+        return min(self.room, 1.0 if math.isinf(room) else room)
+
     def budgets(self) -> dict[str, float]:
-        """What the motion may use of each limit: ``position`` [m or rad] (the swing, after the
-        droop), ``velocity`` [/s] and ``effort`` [N or N·m] (after the load at rest and the droop's)."""
+        """What the motion may use of each limit: ``position`` [m or rad] (the swing about where the joint
+        really rests, :attr:`room_at_rest`), ``velocity`` [/s] and ``effort`` [N or N·m] (after the load at
+        rest and the droop's)."""
         s = self.safety
-        return {"position": s.range_fraction * self.room - self.droop,
+        return {"position": s.range_fraction * self.room_at_rest,
                 "velocity": s.speed_fraction * self.velocity_max,
                 "effort": s.effort_fraction * self.effort_max - self.bias - self.stiffness * self.droop}
 
@@ -216,10 +231,11 @@ class Envelope:
                                       field="start", value=self.rest)
         budgets = self.budgets()
         if not budgets["position"] > 0:
+            where = self.rest if self.resting_at is None else self.resting_at
             raise IdentificationError("the joint rests at a limit: no room to excite it"
-                                      + (f" (its droop {self.droop:.3g} {self.unit} takes what "
-                                         f"{self.safety.range_fraction:g} of the room leaves)" if self.droop else ""),
-                                      field="start", value=self.rest)
+                                      + (f" (it rests at {where:.4g} {self.unit}, {self.droop:.3g} from its reference "
+                                         f"{self.rest:.4g}, the loop's p holding its load)" if self.droop else ""),
+                                      field="start", value=where)
         if not budgets["effort"] > 0:
             flag = "--max-effort" if self.effort_max < self.effort_limit else "effort"
             raise IdentificationError(f"the load at rest ({self.bias:.4g}: gravity and friction) takes all of "
@@ -386,8 +402,33 @@ def envelope_for(robot, joint: str, rest: float, safety: Safety | None = None, *
     _, stiffness = gravity_profile(robot, joint, pose or {}, max(window[0], rest - reach),
                                    min(window[1], rest + reach), gravity_m_s2)
     bias = load + abs(spec.friction if friction is None else friction)
-    droop = load / droop_gain if droop_gain else 0.0
-    return Envelope(joint, rest, lower, upper, speed, effort_limit, safety, bias, droop, unit, stiffness)
+    resting_at = real_rest(robot, joint, pose or {}, rest, droop_gain, gravity_m_s2) if droop_gain else None
+    droop = abs(rest - resting_at) if resting_at is not None else 0.0
+    return Envelope(joint, rest, lower, upper, speed, effort_limit, safety, bias, droop, unit, stiffness, resting_at)
+
+
+def real_rest(robot, joint: str, pose: dict, reference: float, p: float, gravity_m_s2=(0.0, 0.0, -9.81)) -> float:
+    """Where a P loop of stiffness ``p`` [N/m or N·m/rad] holding ``reference`` [m or rad] really rests under
+    gravity, the other joints at ``pose``: ``p·(r - q) = τ_hold(q)``, the holding effort of the robot model
+    over the joint's range (not its value at the reference: a low ``p`` droops where the load is another);
+    by fixed-point iteration, damped where the load's slope is close to ``p``. An IdentificationError when
+    ``p`` cannot hold the load anywhere near."""
+    from jointctl.identification.step_loop import holding_effort
+
+    hold = holding_effort(robot, joint, pose, gravity_m_s2)
+    if hold is None:
+        return reference
+    q = reference
+    for _ in range(500):
+        new = reference - hold(q) / p
+        if abs(new - q) < 1e-12:
+            return new
+        q = 0.5 * (q + new)
+    if abs(reference - hold(q) / p - q) < 1e-6:
+        return q
+    raise IdentificationError(f"its loop's p {p:.4g} cannot hold its gravity load near {reference:.4g}: it would "
+                              "fall away (raise p, or add an integral or the gravity feed-forward)",
+                              field="start", value=reference)
 
 
 class SaturationMonitor:
