@@ -276,7 +276,7 @@ def test_identify_reports_a_poor_fit_with_its_warning(tmp_path):
 
 
 @pytest.mark.parametrize("args, fragments", [
-    (["one_dof", "--joint", "joint1", "--amplitude", "1"], ["amplitude", "at most 0.09669", "range binds", "1.0"]),
+    (["one_dof", "--joint", "joint1", "--amplitude", "1"], ["amplitude", "at most 0.1101", "range binds", "about where it rests", "1.0"]),
     (["one_dof", "--joint", "joint7"], ["--joint", "joint7"]),
     (["one_dof", "--joint", "joint1", "--controllers", "velocity"], ["JointPositionController"]),
     (["trace.csv", "--joint", "joint1"], ["--joint-type"]),

@@ -34,7 +34,7 @@ def nothing_moves(monkeypatch):
       "--workspace=-0.7:-0.3"], ["4 stepped sines", "window [-0.7, -0.3] m (the workspace)"]),
     (["bode", "one_dof", "--joint", "joint1", "--hardware", "industrial", "--dry-run", "--points", "3"],
      ["the reference alone", "3 stepped sines"]),
-    (["autotune", "one_dof", "--controller", "joint1_position_controller", "--bandwidth-hz", "5", "--dry-run",
+    (["autotune", "one_dof", "--controller", "joint1_position_controller", "--bandwidth-hz", "1", "--dry-run",
       "--max-velocity", "0.5"], ["Designed gains", "Check step", "limit 0.5 m/s (--max-velocity)"]),
 ])
 def test_a_dry_run_prints_the_plan_and_moves_nothing(nothing_moves, capsys, tmp_path, argv, fragments) -> None:
@@ -80,3 +80,11 @@ def test_crossing_the_workspace_exits_2_naming_the_limit_the_value_and_the_time(
     assert len(errors) == 1
     assert errors[0].startswith("jointctl: error: --workspace: the joint's position reached -0.65")
     assert "at t = " in errors[0] and "ramped back to -0.5 m" in errors[0] and "at rest" in errors[0]
+
+
+def test_a_step_faster_than_max_velocity_is_refused_before_anything_moves(nothing_moves, capsys, tmp_path) -> None:
+    """A 5 Hz loop steps 0.1 m at up to 1.18 m/s (the model's peak): beyond --max-velocity 0.5, refused."""
+    assert main(["autotune", "one_dof", "--controller", "joint1_position_controller", "--bandwidth-hz", "5",
+                 "--dry-run", "--max-velocity", "0.5", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "--step: a step of 0.1 m would move at 1.18 m/s, beyond --max-velocity 0.5" in err

@@ -19,9 +19,7 @@ import math
 import pytest
 
 from jointctl.scenario.run import run_scenario
-from jointctl.scenario.session import session_defaults
 from jointctl.scenario.spec import load_scenario
-from jointctl.sweep.plant import payload_link, varied_plant
 
 M_KG, B, KP, G = 1.01, 10.0, 400.0, 9.81
 STEP_M, STEP_AT_S, TAIL_START_S = 0.3, 0.5, 2.7
@@ -35,13 +33,9 @@ def amplitude(start_m: float, mass_kg: float, seconds: float) -> float:
 
 
 def run_with_payload(tmp_path, payload_kg: float) -> dict:
-    scenario = load_scenario("one_dof_step")
-
-    def plant(robot):
-        return varied_plant(robot, {}, payload_kg, payload_link(robot)) if payload_kg else robot
-
-    with session_defaults(plant):
-        return run_scenario(scenario, tmp_path / "out", mcap=False)
+    """one_dof_step with ``payload_kg`` at the tool (the scenario's own field, as ``--set payload_kg=`` gives it)."""
+    scenario = load_scenario("one_dof_step", [f"payload_kg={payload_kg!r}"] if payload_kg else [])
+    return run_scenario(scenario, tmp_path / "out", mcap=False)
 
 
 @pytest.mark.slow

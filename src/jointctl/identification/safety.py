@@ -299,7 +299,7 @@ def predicted_peaks(envelope: Envelope, swing: float, velocity: float, effort: f
     adds (NaN: not predicted), to which the load at rest and the gravity stiffness over the swing add."""
     budgets = envelope.budgets()
     total = envelope.bias + envelope.stiffness * swing + effort if math.isfinite(effort) else math.nan
-    return {"position": {"peak": swing, "budget": budgets["position"] + envelope.droop, "room": envelope.room},
+    return {"position": {"peak": swing, "budget": budgets["position"] + envelope.droop, "room": envelope.room_at_rest},
             "velocity": {"peak": velocity, "budget": budgets["velocity"], "limit": envelope.velocity_max},
             "effort": {"peak": total, "budget": envelope.safety.effort_fraction * envelope.effort_max,
                        "limit": envelope.effort_max}}
@@ -309,6 +309,10 @@ def _rule_text(allowance: Allowance) -> str:
     env, predicted = allowance.envelope, allowance.predicted()
     s = env.safety
     if allowance.binds == "position":
+        if env.droop:
+            return (f"the swing {predicted['position']['peak'] - env.droop:.4g} {env.unit} about where it rests "
+                    f"({env.resting_at:.4g} {env.unit}, {env.droop:.3g} from its reference) is "
+                    f"{s.range_fraction:g} of the {env.room_at_rest:.4g} {env.unit} of room there")
         return (f"the swing {predicted['position']['peak']:.4g} {env.unit} is {s.range_fraction:g} of the "
                 f"{env.room:.4g} {env.unit} of room")
     if allowance.binds == "velocity":
