@@ -292,7 +292,23 @@ def _robot_binds(result: dict) -> list[str]:
         binds = list(result["binds"])
     if "max-effort" in (result.get("binds") or []) and "max-effort" not in binds:
         binds.append("max-effort")
+    if _kick_misses_bandwidth(result, robot.get("bandwidth_hz", result["model"]["bandwidth_hz"])):
+        binds.append("kick")
     return binds
+
+
+#: How far a bandwidth may miss the one asked (a share), as :mod:`jointctl.metrics.expectations` judges it.
+BANDWIDTH_MARGIN = 0.05
+
+
+def _kick_misses_bandwidth(result: dict, bandwidth_hz: float | None) -> bool:
+    """Whether a spec that asked for a bandwidth misses it at ``bandwidth_hz`` because the step's derivative kick
+    is clamped: the gains that give the step its overshoot then give the small moves another bandwidth."""
+    asked = result["spec"].get("bandwidth_hz")
+    if result["spec"].get("settling_s") is not None or not asked or bandwidth_hz is None:
+        return False
+    kicked = result.get("derivative") == "error" and not result.get("ramp_s") and "kick" in (result.get("note") or "")
+    return kicked and math.isfinite(bandwidth_hz) and abs(bandwidth_hz / asked - 1) > BANDWIDTH_MARGIN
 
 
 def _alternatives(result: dict, design_with, scenario_for, controller_name: str, *, plant, safety) -> dict:
@@ -327,8 +343,14 @@ def _alternatives(result: dict, design_with, scenario_for, controller_name: str,
             found[remedy] = {"error": str(exc)}
             continue
         robot = trial["robot"]
+        # The step measured on the robot; a bandwidth asked for, on the model (no sweep run for each remedy).
+        model_bandwidth = trial["model"]["bandwidth_hz"]
+        asked = trial["spec"].get("bandwidth_hz") if trial["spec"].get("settling_s") is None else None
+        if asked and abs(model_bandwidth / asked - 1) > BANDWIDTH_MARGIN and "kick" not in trial["binds"]:
+            trial["binds"].append("bandwidth")
         found[remedy] = {"gains": trial["gains"], "derivative": trial["derivative"], "ramp_s": trial["ramp_s"],
                          "feedforward": trial["feedforward"], "meets": not trial["binds"], "binds": trial["binds"],
+                         "model_bandwidth_hz": model_bandwidth,
                          **{k: robot[k] for k in ("step_overshoot_pct", "step_settling_s", "step_final_error",
                                                   "step_peak_effort")}}
     return found
@@ -347,6 +369,10 @@ def _binding_warnings(result: dict) -> list[str]:
             "max-effort": f"--max-effort {result['effort_limit']:g}: the step asks "
                           f"{robot.get('step_peak_effort', math.nan):.4g}",
             "damping": "the plant's own damping: even d = 0 overshoots less than asked",
+            "kick": f"the derivative kick d·step/period, clamped at the effort limit {result['effort_limit']:g}: the "
+                    f"gains that give this step its overshoot give small moves "
+                    f"{robot.get('bandwidth_hz') or result['model']['bandwidth_hz']:.3g} Hz, not "
+                    f"{result['spec']['bandwidth_hz']:g}",
             "spec": "the spec itself at this step"}
     lines = [f"at the step of {result['step']:g} the spec is not met; binds: "
              + "; ".join(what.get(b, b) for b in binds) + "."]
@@ -356,7 +382,8 @@ def _binding_warnings(result: dict) -> list[str]:
             continue
         lines.append(f"--remedy {remedy}: overshoot {alt['step_overshoot_pct']:.3g} %, settling "
                      f"{alt['step_settling_s']:.3g} s, rest {alt['step_final_error']:.3g} from the reference, peak "
-                     f"effort {alt['step_peak_effort']:.4g} on the simulated robot"
+                     f"effort {alt['step_peak_effort']:.4g} on the simulated robot, bandwidth "
+                     f"{alt['model_bandwidth_hz']:.3g} Hz on the model"
                      + (" (meets the spec)" if alt["meets"] else f" (still binds: {', '.join(alt['binds'])})") + ".")
     return lines
 
