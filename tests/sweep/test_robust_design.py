@@ -239,3 +239,18 @@ def test_a_run_whose_integral_starts_empty_holds_until_its_slowest_mode_has_take
     rate = 200.0 / 2000.0
     hold = integral_hold_s(loop, 0.01, 0.1)
     assert hold == pytest.approx(0.5 + math.log(0.01 / (0.002 * 0.1)) / rate, rel=0.01)
+
+
+@pytest.mark.slow
+def test_a_ramped_step_is_designed_and_measured_as_it_runs() -> None:
+    """ros_controllers' law with --remedy ramp: the step's kick d·step/ramp within half of what the load leaves
+    on every plant, and each plant's ramped move measured on the robot (its settling from the ramp's start)."""
+    result = design(0.3, remedies=("ramp", "integral"), samples=0, alternatives=False)
+    robust = result["robust"]
+    ramp = robust["ramp_s"]
+    assert ramp > 0 and robust["derivative"] == "error"
+    assert robust["gains"]["d"] * 0.3 / ramp <= 0.5 * (LIMIT_N - (MASS_KG + 5.0) * G) * (1 + 1e-9)
+    assert result["meets_spec"] and len(robust["robot"]) == 3
+    assert_dynamics_meet_the_spec(robust["robot"], 0.3)
+    for row in robust["robot"]:
+        assert abs(row["final_error"]) <= 0.02 * 0.3, row

@@ -413,10 +413,9 @@ def robust_autotune(scenario_for: Callable, controller_name: str, ranges: Iterab
         raise ConfigError("a robust design is for a position loop", field="--controller", value=controller_name)
     scenario = scenario_for(())
     joint = nominal["joint"]
+    move = scenario_move(scenario, controller_name)  # the ramp asked: --ramp-s, else the scenario's with its step
+    asked_ramp = ramp_s if ramp_s is not None else (move["ramp_s"] if move is not None and step is None else 0.0)
     step, start = float(nominal["step"]), float(nominal["reference"])
-    move = scenario_move(scenario, controller_name)
-    asked_ramp = ramp_s if ramp_s is not None else (move["ramp_s"] if move is not None and step == move["step"]
-                                                    else 0.0)
     plants = family(scenario, joint, ranges, samples=samples, seed=seed)
     robot = load_robot_model(scenario.robot.description)
     pose = {j.name: float(scenario.initial_positions.get(j.name, 0.0)) for j in robot.movable_joints}
@@ -424,6 +423,7 @@ def robust_autotune(scenario_for: Callable, controller_name: str, ranges: Iterab
     target_overshoot = float(nominal["spec"]["overshoot_pct"])
     target_settling = settling_s if settling_s is not None else _linear_settling(nominal, scenario.loop_period_s)
     own_law = nominal["derivative"]  # the controller's own law, unless the remedies make it the measurement's
+    own_feedforward = _gravity_feedforward(scenario, controller_name)
     limit = float(nominal["effort_limit"])
     spec = {"overshoot_pct": target_overshoot, "settling_s": target_settling, "step": step, "reference": start,
             "overshoot_points": OVERSHOOT_POINTS, "settling_share": SETTLING_SHARE, "rest_band": SETTLING_BAND,
@@ -433,11 +433,14 @@ def robust_autotune(scenario_for: Callable, controller_name: str, ranges: Iterab
         law = "measurement" if "measurement" in remedy_set else own_law
         return JointLoop(plants[0].inertia, plants[0].damping, scenario.loop_period_s, limit, None,
                          p=nominal["gains"]["p"], d=nominal["gains"]["d"], derivative=law,
-                         feedforward="feedforward" in remedy_set, integrator="euler", feedforward_hold=nominal_hold)
+                         feedforward=own_feedforward or "feedforward" in remedy_set, integrator="euler",
+                         feedforward_hold=nominal_hold)
 
     def design_with(remedy_set: Sequence[str]) -> FamilyDesign:
-        return design_family(base_loop(remedy_set), plants, start, step, overshoot_pct=target_overshoot,
-                             settling_s=target_settling, remedies=remedy_set, ramp_s=asked_ramp)
+        found = design_family(base_loop(remedy_set), plants, start, step, overshoot_pct=target_overshoot,
+                              settling_s=target_settling, remedies=remedy_set, ramp_s=asked_ramp)
+        check_limits(found, plants, robot, joint, pose, start, step)
+        return found
 
     def check(design: FamilyDesign) -> dict:
         return check_on_robot(target, controllers, overrides, controller_name, joint, design, plants, start, step,
@@ -473,6 +476,35 @@ def robust_autotune(scenario_for: Callable, controller_name: str, ranges: Iterab
                                                remedies)
     result["warnings"] = robust_warnings(result)
     return result
+
+
+def _gravity_feedforward(scenario: Scenario, controller_name: str) -> bool:
+    """Whether the controller, as configured, adds its model's gravity effort (``feedforward: {gravity:
+    true}``, as the arm's controllers do)."""
+    from jointctl.scenario.session import Session
+
+    with Session(scenario) as session:
+        return "gravity" in getattr(session.manager.controller(controller_name), "feedforward_terms", ())
+
+
+def check_limits(design: FamilyDesign, plants: Sequence[Plant], robot, joint: str, pose: dict, start: float,
+                 step: float) -> None:
+    """Refuse (IdentificationError naming the plant) a design whose step would take some plant of the family
+    out of the joint's range or faster than its velocity limit (autotune's step plan, its budgets), before
+    anything moves."""
+    from jointctl.identification.autotune import _step_plan
+    from jointctl.identification.safety import DEFAULT
+
+    reference = reference_step(start, step, hold_s=0.05, ramp_s=design.ramp_s,
+                               after_s=check_after_s(design.settling_s), period_s=design.loop.period_s)
+    for plant in plants:
+        q, v, u = member(design.loop, plant).run(reference)
+        try:
+            _step_plan(robot, joint, pose, DEFAULT, q, v, u, start, step, design.loop.effort_limit, "effort limit",
+                       design.ramp_s)
+        except IdentificationError as exc:
+            where = ", ".join(f"{k} {v:.4g}" for k, v in plant.values.items())
+            raise IdentificationError(f"at {where}: {exc.message}", field=exc.field, value=exc.value) from None
 
 
 def _linear_settling(nominal: dict, period_s: float) -> float:
@@ -563,6 +595,8 @@ def _alternatives(result: dict, binds: dict, design_with, check, plants: Sequenc
                 continue
             if remedy == "ramp" and (robust["ramp_s"] or robust["derivative"] == "measurement"):
                 continue
+            if remedy == "feedforward" and robust["feedforward"]:
+                continue
             wanted.append(remedy)
     found = {}
     for remedy in wanted:
@@ -626,11 +660,12 @@ def check_on_robot(target: str, controllers: str | None, overrides: Sequence[str
             hold = integral_hold_s(closed, start - begin, step)
         else:
             begin, hold = closed.rest(start)[0], HOLD_S
-        ramp = f", ramp_s: {design.ramp_s!r}" if design.ramp_s else ""
+        command = f"{{type: step, from: {start!r}, to: {start + step!r}, at: {hold!r}" + (
+            f", ramp_s: {design.ramp_s!r}}}" if design.ramp_s else "}")
         # The step analysis's final value is its record's last tenth, which must come after the step: a long hold
         # runs longer after the step too (the figures are read over ``after``, as on the model).
         items = [*common, f"duration_s={hold + max(after, hold / 8)!r}", f"initial_positions.{joint}={begin!r}",
-                 f"commands.{controller_name}={{type: step, from: {start!r}, to: {start + step!r}, at: {hold!r}{ramp}}}",
+                 f"commands.{controller_name}={command}",
                  # The step analysis reads a step, not a ramp: its figures (the saturation) only for a step.
                  "analysis=null" if design.ramp_s else f"analysis={{type: step_response, joint: {joint}}}"]
         tasks.append(RunTask(k, target, dict(plant.values), 0, controllers, tuple(items), trace_points=10**9))
