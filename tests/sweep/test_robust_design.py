@@ -254,3 +254,22 @@ def test_a_ramped_step_is_designed_and_measured_as_it_runs() -> None:
     assert_dynamics_meet_the_spec(robust["robot"], 0.3)
     for row in robust["robot"]:
         assert abs(row["final_error"]) <= 0.02 * 0.3, row
+
+
+def test_a_step_that_would_take_some_plant_beyond_the_joints_range_is_refused_naming_it() -> None:
+    """The piston's stroke is [-1, 0] m: 0.45 m up from -0.5 m with an undamped loop (d = 0, ζ = b/(2 sqrt(p m))
+    about 0.1 for the bare piston) swings well past the top."""
+    from jointctl.identification.plant_fit import IdentificationError
+    from jointctl.model.loader import load_robot_model
+    from jointctl.sweep.robust_design import FamilyDesign, check_limits
+
+    scenario = scenario_for()(())
+    plants = family(scenario, "joint1", [parse_range("payload_kg=0:5")], samples=0)
+    loop = JointLoop(MASS_KG, DAMPING, 0.001, LIMIT_N, p=2000.0, d=0.0, derivative="measurement",
+                     integrator="euler")
+    design_ = FamilyDesign(loop, (), (), False, SETTLING_S, 0.0)
+    robot = load_robot_model(scenario.robot.description)
+    with pytest.raises(IdentificationError) as caught:
+        check_limits(design_, plants, robot, "joint1", {"joint1": -0.5}, -0.5, 0.45)
+    assert "at payload_kg 0:" in str(caught.value) and caught.value.field == "--step"
+    check_limits(design_, plants, robot, "joint1", {"joint1": -0.5}, -0.5, 0.05)  # a small step fits

@@ -420,7 +420,7 @@ def robust_autotune(scenario_for: Callable, controller_name: str, ranges: Iterab
     robot = load_robot_model(scenario.robot.description)
     pose = {j.name: float(scenario.initial_positions.get(j.name, 0.0)) for j in robot.movable_joints}
     nominal_hold = holding_effort(robot, joint, pose, scenario.gravity_m_s2)
-    target_overshoot = float(nominal["spec"]["overshoot_pct"])
+    target_overshoot = float(overshoot_pct)
     target_settling = settling_s if settling_s is not None else _linear_settling(nominal, scenario.loop_period_s)
     own_law = nominal["derivative"]  # the controller's own law, unless the remedies make it the measurement's
     own_feedforward = _gravity_feedforward(scenario, controller_name)
@@ -442,7 +442,7 @@ def robust_autotune(scenario_for: Callable, controller_name: str, ranges: Iterab
         check_limits(found, plants, robot, joint, pose, start, step)
         return found
 
-    def check(design: FamilyDesign) -> dict:
+    def check(design: FamilyDesign) -> list[dict]:
         return check_on_robot(target, controllers, overrides, controller_name, joint, design, plants, start, step,
                               target_overshoot, scheduler=scheduler, workers=workers)
 
@@ -545,16 +545,16 @@ def _design_report(design: FamilyDesign, plants: Sequence[Plant]) -> dict:
     return {"gains": {k: (bool(v) if isinstance(v, bool) else float(v)) for k, v in loop.gains.items()},
             "derivative": loop.derivative, "feedforward": ["gravity"] if loop.feedforward else [],
             "ramp_s": design.ramp_s, "settling_s": design.settling_s, "meets_spec_on_model": design.met,
-            "model": rows, "model_worst": _worst_rows(rows, settling="settling_s")}
+            "model": rows, "model_worst": _worst_rows(rows)}
 
 
-def _worst_rows(rows: Sequence[dict], settling: str = "settling_s") -> dict:
+def _worst_rows(rows: Sequence[dict]) -> dict:
     """The largest overshoot, settling time (None when a plant did not settle) and rest error over ``rows``,
     each with the plant's values; how many rows there are, met the spec, and failed to run."""
     ran = [r for r in rows if not r.get("error")]
     out = {"plants": len(rows), "passed": sum(1 for r in ran if not r["binds"]),
            "errors": [r["error"] for r in rows if r.get("error")]}
-    for key, size in (("overshoot_pct", _finite), (settling, lambda v: v if math.isfinite(v) else math.inf),
+    for key, size in (("overshoot_pct", _finite), ("settling_s", lambda v: v if math.isfinite(v) else math.inf),
                       ("final_error", abs)):
         if not ran:
             out[key] = out[f"{key}_at"] = None
@@ -790,6 +790,6 @@ def write_robust(out_dir, scenario: Scenario, controller_name: str, result: dict
     return path
 
 
-__all__ = ["FamilyDesign", "Plant", "Range", "check_on_robot", "design_family", "family", "family_binds",
-           "family_damping", "integral_hold_s", "member", "parse_range", "plant_binds", "robust_autotune",
-           "robust_warnings", "solve_family", "write_robust"]
+__all__ = ["FamilyDesign", "Plant", "Range", "check_limits", "check_on_robot", "design_family", "family",
+           "family_binds", "family_damping", "integral_hold_s", "member", "parse_range", "plant_binds",
+           "robust_autotune", "robust_warnings", "solve_family", "write_robust"]
