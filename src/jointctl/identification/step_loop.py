@@ -45,7 +45,9 @@ class JointLoop:
     ``period_s`` the control period [s], ``effort_limit`` [N or N·m] (inf: none), ``hold`` the effort [N or
     N·m] holding the joint against gravity at a position [m or rad] (None: no load); the gains ``p`` [N/m or N·m/rad], ``i`` [N/(m·s) or N·m/(rad·s)], ``d`` [N·s/m or N·m·s/rad], the integral's
     clamp ``i_clamp`` [N or N·m] (the integral term stays within ±``i_clamp``; inf: none) and ``antiwindup``;
-    ``derivative`` "error" or "measurement"; ``feedforward`` whether the model's gravity effort is added;
+    ``derivative`` "error" or "measurement"; ``feedforward`` whether the model's gravity effort is added:
+    ``feedforward_hold`` [N or N·m] at a position, the controller's own model's (None: ``hold``, the plant's; a
+    payload the controller does not know of is in ``hold`` only);
     ``integrator`` how the plant moves over a period: "hold" (exactly, the effort held: a real joint) or
     "euler" (as the simulated robot does: MuJoCo's semi-implicit Euler, damping implicit, ``v⁺ = (v +
     h·f/m)/(1 + h·b/m)``, ``q⁺ = q + h·v⁺``; ahead of the exact motion by about ``h·v/2``)."""
@@ -63,6 +65,7 @@ class JointLoop:
     derivative: str = "error"
     feedforward: bool = False
     integrator: str = "hold"
+    feedforward_hold: Callable[[float], float] | None = None
 
     def with_gains(self, **gains) -> JointLoop:
         """This loop with other gains (``p``, ``i``, ``d``, ``i_clamp``, ``antiwindup``, ``derivative``,
@@ -81,15 +84,21 @@ class JointLoop:
         """``τ_hold(q)`` [N or N·m]."""
         return self.hold(q) if self.hold is not None else 0.0
 
+    def model_load(self, q: float) -> float:
+        """What the gravity feed-forward adds at ``q`` [N or N·m] (0 without it)."""
+        if not self.feedforward:
+            return 0.0
+        return self.feedforward_hold(q) if self.feedforward_hold is not None else self.load(q)
+
     def rest(self, reference: float) -> tuple[float, float]:
         """(position [m or rad], integral term [N or N·m]) where the loop rests holding ``reference``: the P
         term holds what the feed-forward or the integral (within its clamp) does not, ``p·(r - q) + i_term =
-        τ_hold(q)``, solved by fixed-point iteration (it converges where the loop is stable)."""
+        τ_hold(q) - τ_ff(q)``, solved by fixed-point iteration (it converges where the loop is stable)."""
         q = reference
         for _ in range(200):
-            load = self.load(q)
-            i_term = 0.0 if self.feedforward or not self.i else max(-self.i_clamp, min(self.i_clamp, load))
-            held = 0.0 if self.feedforward else load - i_term
+            load = self.load(q) - self.model_load(q)
+            i_term = 0.0 if not self.i else max(-self.i_clamp, min(self.i_clamp, load))
+            held = load - i_term
             if not self.p:
                 return q, i_term
             new = reference - held / self.p
@@ -116,6 +125,7 @@ class JointLoop:
         a00, a01, a10, a11, b0, b1 = self._plant()
         h, p, i, d = self.period_s, self.p, self.i, self.d
         limit, load = self.effort_limit, self.load
+        model = self.feedforward_hold if self.feedforward_hold is not None else load
         clamp, antiwindup = self.i_clamp, self.antiwindup
         on_error = self.derivative == "error"
         r = np.asarray(reference, dtype=float)
@@ -146,7 +156,7 @@ class JointLoop:
             u = limit if u > limit else -limit if u < -limit else u
             hold = load(q)
             if self.feedforward:
-                u += hold
+                u += model(q) if model is not load else hold
                 u = limit if u > limit else -limit if u < -limit else u
             qs[k], vs[k], us[k] = q, v, u
             force = u - hold
