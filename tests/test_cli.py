@@ -324,8 +324,8 @@ def test_identify_then_autotune_with_the_identified_plant_writes_the_chapters_ya
 
 @pytest.mark.parametrize("args, fragments", [
     (["--bandwidth-hz", "20", "--step", "0.5", "--set", "controllers.joint1_position_controller.derivative=measurement"],
-     ["bandwidth_hz", "the most this step allows is"]),
-    (["--bandwidth-hz", "25", "--step", "0.5"], ["bandwidth_hz", "the most this step allows is about"]),
+     ["--step", "a step of 0.5 m from -0.5 would reach", "beyond the joint's range [-1, 0]", "0.5"]),
+    (["--bandwidth-hz", "5", "--step", "0"], ["step", "other than 0", "0.0"]),
     (["--bandwidth-hz", "5", "--zeta", "1.5"], ["zeta", "1.5"]),
     (["--bandwidth-hz", "5", "--plant", "nowhere.json"], ["--plant", "nowhere.json"]),
     (["--bandwidth-hz", "5", "--hardware", "industrial"], ["--hardware", "gains of its own"]),

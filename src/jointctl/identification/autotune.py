@@ -241,7 +241,8 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
         return tune(controller_name, joint, loop, period_s, plant, robot, pose, gravity, controller.effort_limit,
                     {"p": gains.p, "i": gains.i, "d": gains.d}, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step,
                     settling_s=settling_s, derivative=law, safety=safety, gravity_m_s2=scenario.gravity_m_s2,
-                    ramp_s=ramp_s or 0.0, reference=reference, remedies=remedy_set, integrator="euler")
+                    ramp_s=ramp_s or 0.0, reference=reference, remedies=remedy_set, integrator="euler",
+                    feedforward="gravity" in getattr(controller, "feedforward_terms", ()))
 
     result = design_with(tuple(remedies))
     session.close()
@@ -325,6 +326,8 @@ def _alternatives(result: dict, design_with, scenario_for, controller_name: str,
                 continue
             if remedy == "measurement" and result["derivative"] == "measurement":
                 continue
+            if remedy == "feedforward" and "gravity" in (result.get("feedforward") or ()):
+                continue
             if remedy == "ramp" and (result.get("ramp_s") or result["derivative"] == "measurement"):
                 continue
             wanted.append(remedy)
@@ -345,9 +348,8 @@ def _alternatives(result: dict, design_with, scenario_for, controller_name: str,
         robot = trial["robot"]
         # The step measured on the robot; a bandwidth asked for, on the model (no sweep run for each remedy).
         model_bandwidth = trial["model"]["bandwidth_hz"]
-        asked = trial["spec"].get("bandwidth_hz") if trial["spec"].get("settling_s") is None else None
-        if asked and abs(model_bandwidth / asked - 1) > BANDWIDTH_MARGIN and "kick" not in trial["binds"]:
-            trial["binds"].append("bandwidth")
+        if _kick_misses_bandwidth(trial, model_bandwidth) and "kick" not in trial["binds"]:
+            trial["binds"].append("kick")
         found[remedy] = {"gains": trial["gains"], "derivative": trial["derivative"], "ramp_s": trial["ramp_s"],
                          "feedforward": trial["feedforward"], "meets": not trial["binds"], "binds": trial["binds"],
                          "model_bandwidth_hz": model_bandwidth,
@@ -389,16 +391,19 @@ def _binding_warnings(result: dict) -> list[str]:
 
 
 def _check_spec(bandwidth_hz, step) -> None:
-    for name, value in (("bandwidth_hz", bandwidth_hz), ("step", step)):
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise IdentificationError("must be a positive number", field=name, value=value)
+    """A positive bandwidth [Hz]; a finite step other than 0 [m, rad, or per s] (its sign the move's way)."""
+    if not (isinstance(bandwidth_hz, (int, float)) and math.isfinite(bandwidth_hz) and bandwidth_hz > 0):
+        raise IdentificationError("must be a positive number", field="bandwidth_hz", value=bandwidth_hz)
+    if not (isinstance(step, (int, float)) and math.isfinite(step) and step != 0):
+        raise IdentificationError("must be a number other than 0 (its sign is the move's way)", field="step",
+                                  value=step)
 
 
 def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: dict | None, robot, pose: dict,
          gravity: float | None, effort_limit: float, previous_gains: dict, *, bandwidth_hz: float, zeta: float,
          step: float, settling_s: float | None = None, derivative: str = "error", safety: Safety | None = None,
          gravity_m_s2=(0.0, 0.0, -9.81), ramp_s: float = 0.0, reference: float | None = None,
-         remedies: tuple[str, ...] = (), integrator: str = "hold") -> dict:
+         remedies: tuple[str, ...] = (), integrator: str = "hold", feedforward: bool = False) -> dict:
     """Design the gains for the spec and predict them on the models (no robot involved): the plant from
     ``plant`` (an identification's metrics, its ``gravity_load_n`` the load) or else ``robot``'s model at
     ``pose`` with ``gravity`` [N or N·m, magnitude] as the load. ``settling_s`` is recorded in the spec when
@@ -411,7 +416,8 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     loop as it runs (the law, the effort clamp, the gravity load over the move); ``remedies`` (of
     :data:`~jointctl.identification.step_design.REMEDY_NAMES`) change the loop designed; ``integrator`` is how
     the joint moves over a period (:class:`~jointctl.identification.step_loop.JointLoop`: "euler" for the
-    simulated robot, "hold" for a real one). A velocity loop is
+    simulated robot, "hold" for a real one); ``feedforward``: the controller already adds the model's gravity
+    effort (its ``feedforward: {gravity: true}``). A velocity loop is
     refused when a step of ``step`` would exceed ``effort_limit``, naming the bandwidth it allows."""
     safety = safety or DEFAULT
     user_effort = safety.limits.max_effort
@@ -433,7 +439,8 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
             mass, damping, period_s, plant, robot, joint, pose, effort_limit, effort_flag,
             bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s, derivative=derivative,
             safety=safety, gravity_m_s2=gravity_m_s2, ramp_s=ramp_s, reference=reference, remedies=remedies,
-            integrator=integrator)}
+            integrator=integrator, feedforward=feedforward)}
+    step = abs(step)  # a velocity loop's check steps up: the bandwidth is the same both ways
     gains = design(mass, damping, loop=loop, bandwidth_hz=bandwidth_hz, zeta=zeta, period_s=period_s)
     need = gains["p"] * step + gravity
     if need > effort_limit:
@@ -463,13 +470,14 @@ def _hold_profile(plant: dict | None, robot, joint: str, pose: dict, gravity_m_s
 def _design_position(mass: float, damping: float, period_s: float, plant, robot, joint: str, pose: dict,
                      effort_limit: float, effort_flag: str, *, bandwidth_hz: float, zeta: float, step: float,
                      settling_s: float | None, derivative: str, safety: Safety, gravity_m_s2, ramp_s: float,
-                     reference: float | None, remedies: tuple[str, ...], integrator: str = "hold") -> dict:
+                     reference: float | None, remedies: tuple[str, ...], integrator: str = "hold",
+                     feedforward: bool = False) -> dict:
     """A position loop's gains for the move that will run (see :func:`tune` and
     :mod:`jointctl.identification.step_design`): the linear design for ``zeta`` and ``bandwidth_hz`` first;
     its step overshoot (``exp(-πζ/√(1-ζ²))``) and settling time (``settling_s``, else the linear loop's) are
     then met on the loop as it runs at the step, when the linear design does not already meet them there."""
     law = "measurement" if "measurement" in remedies else derivative
-    feedforward = "feedforward" in remedies
+    feedforward = feedforward or "feedforward" in remedies
     hold = _hold_profile(plant, robot, joint, pose, gravity_m_s2)
     start = float(pose.get(joint, 0.0)) if reference is None else float(reference)
     controller_limit = effort_limit if effort_flag == "effort limit" else _urdf_effort(robot, joint)
@@ -497,7 +505,7 @@ def _design_position(mass: float, damping: float, period_s: float, plant, robot,
     for _ in range(3):
         if "ramp" in remedies and not asked_ramp:
             # The ramp whose kick fits the gains designed with it (a few rounds: the gains follow the ramp).
-            ramp_s = max(ramp_s, ramp_for_kick(base.with_gains(effort_limit=effort_limit), step))
+            ramp_s = max(ramp_s, ramp_for_kick(base.with_gains(effort_limit=effort_limit), step, start=start))
         moves = reference_for(target_settling)
         first = base.step(moves)
         close = (abs(_finite(first.overshoot_pct) - target_overshoot) <= OVERSHOOT_TOLERANCE_PCT
@@ -510,7 +518,7 @@ def _design_position(mass: float, damping: float, period_s: float, plant, robot,
             found = solve_step(base, moves, overshoot_pct=target_overshoot, settling_s=target_settling,
                                integral_clamp=clamp)
         if "ramp" not in remedies or asked_ramp or ramp_for_kick(
-                found.loop.with_gains(effort_limit=effort_limit), step) <= ramp_s:
+                found.loop.with_gains(effort_limit=effort_limit), step, start=start) <= ramp_s:
             break
         base = found.loop
     promised_settling = target_settling

@@ -195,13 +195,15 @@ REMEDIES = {"gravity": ("feedforward", "integral"), "effort": ("lower-bandwidth"
 REMEDY_NAMES = ("measurement", "ramp", "integral", "feedforward", "lower-bandwidth")
 
 
-def ramp_for_kick(loop: JointLoop, step: float, *, share: float = 0.5) -> float:
-    """The shortest ramp [s] (whole periods) over which ``step`` [m or rad] asks at most ``share`` of the effort
-    left beside the load of ``loop``'s derivative on the error: ``d·step/ramp_s ≤ share·(limit - |load|)``;
-    0 when the loop has no such derivative or no limit."""
+def ramp_for_kick(loop: JointLoop, step: float, *, share: float = 0.5, start: float = 0.0) -> float:
+    """The shortest ramp [s] (whole periods) over which ``step`` [m or rad] from ``start`` asks at most ``share``
+    of the effort left beside the load of ``loop``'s derivative on the error: ``d·|step|/ramp_s ≤
+    share·(limit - |load|)``, the load the larger at either end; 0 when the loop has no such derivative or no
+    limit."""
     if loop.derivative != "error" or not loop.d or not math.isfinite(loop.effort_limit):
         return 0.0
-    room = share * max(loop.effort_limit - abs(loop.load(0.0)), 1e-9 * loop.effort_limit)
+    load = max(abs(loop.load(start)), abs(loop.load(start + step)))
+    room = share * max(loop.effort_limit - load, 1e-9 * loop.effort_limit)
     return loop.period_s * math.ceil(loop.d * abs(step) / room / loop.period_s)
 
 
