@@ -56,7 +56,8 @@ from jointctl.identification.frequency_response import (LoopModel, _crossing, he
                                                          servo_reference)
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.identification.step_design import (INTEGRAL_TIMES, OVERSHOOT_TOLERANCE_PCT, SETTLING_TOLERANCE,
-                                                 StepDesign, binding, lowest_settling, ramp_for_kick, solve_step, with_integral)
+                                                 StepDesign, binding, lowest_settling, ramp_for_kick, solve_step,
+                                                 with_integral)
 from jointctl.identification.step_loop import JointLoop, holding_effort, reference_step, step_figures
 from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Guard, Safety, SaturationMonitor, envelope_for,
                                             run_guarded, saturation_text)

@@ -238,5 +238,6 @@ def lowest_settling(loop: JointLoop, reference_for, *, overshoot_pct: float, set
     return high, found
 
 
-__all__ = ["INTEGRAL_TIMES", "REMEDIES", "REMEDY_NAMES", "StepDesign", "binding", "damping_for_overshoot", "lowest_settling",
+__all__ = ["INTEGRAL_TIMES", "REMEDIES", "REMEDY_NAMES", "StepDesign", "binding", "damping_for_overshoot",
+           "lowest_settling",
            "ramp_for_kick", "solve_step", "with_integral"]
