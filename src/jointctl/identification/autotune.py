@@ -204,6 +204,19 @@ def scenario_move(scenario: Scenario, controller_name: str) -> dict | None:
     return {"from": start, "step": end - start, "ramp_s": float(config.get("ramp_s", 0.0))}
 
 
+def the_move(scenario: Scenario, controller_name: str, step: float | None,
+             ramp_s: float | None) -> tuple[float, float | None, float | None]:
+    """(step, the reference it starts from or None for the one the loop holds, ramp [s] or None): the user's
+    ``step`` and ``ramp_s``, else the scenario's own step of ``controller_name`` (:func:`scenario_move`), else
+    :data:`DEFAULT_STEP`."""
+    move = scenario_move(scenario, controller_name)
+    reference = None
+    if step is None and move is not None:
+        step, reference = move["step"], move["from"]
+        ramp_s = move["ramp_s"] if ramp_s is None else ramp_s
+    return (DEFAULT_STEP if step is None else step), reference, ramp_s
+
+
 def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: float = 0.7,
              step: float | None = None, plant: dict | None = None, out_dir: str | Path | None = None,
              check_on_robot: bool = True, settling_s: float | None = None, safety: Safety | None = None,
@@ -217,12 +230,7 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
     ``alternatives``, a spec the loop misses at the step gets each remedy that answers what binds
     designed and checked on the simulated robot (``alternatives`` in the result)."""
     scenario: Scenario = scenario_for(())
-    move = scenario_move(scenario, controller_name)
-    reference = None
-    if step is None and move is not None:
-        step, reference = move["step"], move["from"]
-        ramp_s = move["ramp_s"] if ramp_s is None else ramp_s
-    step = DEFAULT_STEP if step is None else step
+    step, reference, ramp_s = the_move(scenario, controller_name, step, ramp_s)
     _check_spec(bandwidth_hz, step)
     session = Session(scenario)
     hardware = session.hardware
@@ -960,5 +968,6 @@ def _write(out_dir, file_name: str, document: dict, controller_name: str, result
     write_metrics(out, result)  # strict JSON: a figure not measured or unbounded is null
 
 
-__all__ = ["autotune", "autotune_servoed", "bandwidth_ratio", "design", "overshoot_of", "settling_time",
-           "spec_from_step", "spec_warnings", "tune", "zeta_of"]
+__all__ = ["DEFAULT_STEP", "autotune", "autotune_servoed", "bandwidth_ratio", "design", "loop_zeta", "overshoot_of",
+           "scenario_move", "settling_time", "spec_from_step", "spec_warnings", "the_move", "tune", "undamped_design",
+           "zeta_of"]

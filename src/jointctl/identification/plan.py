@@ -20,7 +20,7 @@ import numpy as np
 from jointctl.control.joint_controllers import derivative_law
 from jointctl.control.manager import read_yaml, set_dotted
 from jointctl.errors import ConfigError
-from jointctl.identification.autotune import DEFAULT_STEP, _gravity_load, scenario_move, tune
+from jointctl.identification.autotune import _gravity_load, the_move, tune
 from jointctl.identification.excitation import plan_identification
 from jointctl.identification.frequency_response import (LoopModel, loop_model, plan_summary, plan_sweep,
                                                          plant_friction)
@@ -144,12 +144,7 @@ def plan_autotune(scenario, controller: str, *, bandwidth_hz: float, zeta: float
     gravity = None if plant is not None else _gravity_load(robot, pose, joint, scenario.gravity_m_s2)
     spec = robot.joint(joint)
     effort_limit = spec.limits.effort if spec.limits is not None and spec.limits.effort > 0 else math.inf
-    move = scenario_move(scenario, controller)
-    reference = None
-    if step is None and move is not None:
-        step, reference = move["step"], move["from"]
-        ramp_s = move["ramp_s"] if ramp_s is None else ramp_s
-    step = DEFAULT_STEP if step is None else step
+    step, reference, ramp_s = the_move(scenario, controller, step, ramp_s)
     result = tune(controller, joint, loop, scenario.loop_period_s, plant, robot, pose, gravity, effort_limit,
                   config["gains"], bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s,
                   derivative=config["derivative"], safety=safety, gravity_m_s2=scenario.gravity_m_s2,
