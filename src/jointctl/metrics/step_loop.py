@@ -48,8 +48,9 @@ SATURATION_MARGIN = 0.02
 class JointLoop:
     """One joint's plant and its position controller: ``mass`` [kg or kg·m²], ``damping`` [N·s/m or N·m·s/rad],
     ``period_s`` the control period [s], ``effort_limit`` [N or N·m] (inf: none), ``hold`` the effort [N or
-    N·m] holding the joint against gravity at a position [m or rad] (None: no load); the gains ``p`` [N/m or N·m/rad], ``i`` [N/(m·s) or N·m/(rad·s)], ``d`` [N·s/m or N·m·s/rad], the integral's
-    clamp ``i_clamp`` [N or N·m] (the integral term stays within ±``i_clamp``; inf: none) and ``antiwindup``;
+    N·m] holding the joint against gravity at a position [m or rad] (None: no load); the gains ``p`` [N/m or
+    N·m/rad], ``i`` [N/(m·s) or N·m/(rad·s)], ``d`` [N·s/m or N·m·s/rad], the integral's clamp ``i_clamp`` [N
+    or N·m] (the integral term stays within ±``i_clamp``; inf: none) and ``antiwindup``;
     ``derivative`` "error" or "measurement"; ``feedforward`` whether the model's gravity effort is added;
     ``integrator`` how the plant moves over a period: "hold" (exactly, the effort held: a real joint) or
     "euler" (as the simulated robot does: MuJoCo's semi-implicit Euler, damping implicit, ``v⁺ = (v +
