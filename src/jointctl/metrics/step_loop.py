@@ -140,10 +140,12 @@ class JointLoop:
         value, whose velocity no longer moves the joint the way of the move (its first peak)."""
         a00, a01, a10, a11, b0, b1 = self._plant()
         h, p, i, d = self.period_s, self.p, self.i, self.d
-        limit, load = self.effort_limit, self.load
+        limit, hold_at = self.effort_limit, self.hold
         clamp, antiwindup = self.i_clamp, self.antiwindup
         on_error = self.derivative == "error"
         feedforward, ff = self.feedforward, self.feedforward_effort
+        model_hold = self.feedforward_hold
+        own_model = model_hold is None  # the feed-forward is the load itself
         r = np.asarray(reference, dtype=float)
         if start is None:
             q, i_state = self.rest(float(r[0]))
@@ -179,14 +181,15 @@ class JointLoop:
                 i_term = 0.0
             u = p * e + i_term + d * rate
             u = limit if u > limit else -limit if u < -limit else u
+            load = hold_at(q) if hold_at is not None else 0.0
             if feedforward:
-                u += ff(q)
+                u += load if own_model else model_hold(q)
                 u = limit if u > limit else -limit if u < -limit else u
             qs[k], vs[k], us[k] = q, v, u
             if pending is not None:
                 pending.append(u)
                 u = pending.popleft()
-            force = u - load(q)
+            force = u - load
             q, v = a00 * q + a01 * v + b0 * force, a10 * q + a11 * v + b1 * force
         return qs, vs, us
 

@@ -25,7 +25,6 @@ wrapped error of a continuous joint, an asymmetric integral clamp (taken as ±``
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -34,6 +33,9 @@ import numpy as np
 from jointctl.metrics.step_loop import JointLoop, StepFigures, holding_effort, step_figures
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.session import Session
+
+#: A command within this share of the effort limit is at it (a clamped one is the limit, to rounding).
+LIMIT_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True)
@@ -62,12 +64,18 @@ class StepModel:
         return step_figures(self.time_s, self.position, self.reference, self.effort, self.loop.effort_limit)
 
     def limit_acted(self) -> bool:
-        """Whether the effort limit shaped the response: the loop without it answers otherwise."""
-        if not math.isfinite(self.loop.effort_limit):
+        """Whether the effort limit shaped the response: a command at the limit, or (with the feed-forward, which
+        is added after the PID's own clamp) a PID term at it."""
+        limit = self.loop.effort_limit
+        if not math.isfinite(limit):
             return False
-        free = dataclasses.replace(self.loop, effort_limit=math.inf)
-        position, _, _ = free.run(self.reference, start=self.start)
-        return not np.array_equal(position, self.position)
+        at = limit * (1 - LIMIT_TOLERANCE)
+        if np.any(np.abs(self.effort) >= at):
+            return True
+        if not self.loop.feedforward:
+            return False
+        feedforward = np.fromiter(map(self.loop.feedforward_effort, self.position), float, self.position.size)
+        return bool(np.any(np.abs(self.effort - feedforward) >= at))
 
 
 def joint_loop(session: Session, joint: str, controller, pose: dict) -> JointLoop:
