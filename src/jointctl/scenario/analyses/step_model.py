@@ -53,9 +53,18 @@ class StepModel:
 
     def position_at(self, time_s) -> np.ndarray:
         """The model's position [m or rad] at the loop times ``time_s`` [s] (a trace's: whole periods)."""
-        index = np.clip(np.rint(np.asarray(time_s, dtype=float) / self.loop.period_s).astype(int), 0,
-                        self.position.size - 1)
-        return self.position[index]
+        return self.position[self._cycles(time_s)]
+
+    def measured_effort_at(self, time_s) -> np.ndarray:
+        """The effort [N or N·m] the joint's hardware reports at the loop times ``time_s`` [s], as a trace records
+        it: read at the start of a cycle, the effort that acted over the last period, i.e. the command of the
+        cycle before, ``delay_cycles`` earlier still (0 before any command has arrived)."""
+        cycles = self._cycles(time_s) - 1 - self.loop.delay_cycles
+        return np.where(cycles >= 0, self.effort[np.clip(cycles, 0, None)], 0.0)
+
+    def _cycles(self, time_s) -> np.ndarray:
+        return np.clip(np.rint(np.asarray(time_s, dtype=float) / self.loop.period_s).astype(int), 0,
+                       self.position.size - 1)
 
     def figures(self) -> StepFigures:
         """The step's figures as autotune reads a step (:func:`~jointctl.metrics.step_loop.step_figures`:

@@ -289,8 +289,10 @@ def _model_figures(theory: StepTheory, model: StepModel, t: np.ndarray, referenc
         read = step_response(t, reference, model.position_at(t), step_time_s=step_time_s, settle_band=settle_band)
     except AnalysisError as exc:
         return f"the loop as it runs gives no step to read: {exc.message}"
-    after = model.time_s >= step_time_s - 1e-9
-    peak = float(np.max(np.abs(model.effort[after]))) if np.any(after) else None
+    # The peak effort as the trace records it (what acted over the period before each sample: a trace recorded
+    # every few cycles may miss a one-cycle kick, and so does this).
+    after = model.measured_effort_at(t[t >= step_time_s])
+    peak = float(np.max(np.abs(after))) if after.size else None
     values = read.as_dict()
     found = {key: values.get(key) for key in (*TRANSIENT, STEADY)}
     found = {key: (None if value is None or not math.isfinite(value) else float(value)) for key, value in found.items()}
