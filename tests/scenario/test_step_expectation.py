@@ -75,6 +75,21 @@ def test_latency_and_a_payload_are_the_simulated_robots(tmp_path):
     assert metrics["overshoot_pct"] > 15.0
 
 
+def test_an_overshoot_of_the_laws_zero_is_not_reported_as_critical_damping(tmp_path):
+    # No joint damping, d 80 on the error, a 1 cm step (its kick, 800 N, within the limit): the poles are real
+    # (ζ = 80/(2√(400·1.01)) = 1.99) and the zero alone carries the piston 4.9 % past its rest. The fit ran to
+    # ζ 0.9999995; the step's figures are those of the second-order loop that overshoots as much.
+    metrics = one_dof_step(tmp_path, "controllers.joint1_position_controller.pid.d=80", "model.joint1.damping=0",
+                           "gravity=0", "commands.joint1_position_controller.to=-0.21")
+    overshoot = metrics["overshoot_pct"]
+    assert 4.5 < overshoot < 5.2
+    log = math.log(overshoot / 100)
+    assert metrics["damping_ratio"] == pytest.approx(-log / math.hypot(math.pi, log), rel=1e-9)  # 0.69
+    assert "does not oscillate" in metrics["fit_note"]
+    for key in FIGURES:
+        assert metrics["expected"][key] == pytest.approx(metrics[key], rel=1e-6), key
+
+
 # -- a loaded revolute joint: the yaw/pitch arm's shoulder -------------------------------------------------------
 
 ARM_CONTROLLERS = """yaw_pitch_arm:
