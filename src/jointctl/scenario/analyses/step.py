@@ -51,8 +51,8 @@ def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, An
     zoom = (step_time - 0.1, step_time + 1.0)
     marks = step_marks(t, pos, step_time, result, theory)
     curve = theory.response(t)
-    label = ("model: the loop as it runs" if "overshoot_pct" not in theory.not_applicable
-             else "model of the joint alone (not valid)")
+    moved = theory.not_applicable.get("overshoot_pct", "").startswith("the other joints' loops move")
+    label = "model of the joint alone (its neighbours move it)" if moved else "model: the loop as it runs"
     events = run_events(session, trace)
     for name, window, what in (("position.png", None, "step response"), ("position_zoom.png", zoom, "step (zoom)")):
         figures.plot_step(out / name, t, cmd, pos, title=f"{session.scenario.name}: {joint} {what}", unit=unit,
