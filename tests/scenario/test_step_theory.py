@@ -259,6 +259,24 @@ def test_gravity_feedforward_rests_at_the_reference(tmp_path):
     assert metrics["warnings"] == []
 
 
+def test_a_soft_elbow_moves_the_shoulders_mode_beyond_what_the_joint_alone_describes(tmp_path):
+    # The elbow held by p 30 (not 80): the linearised loops move the shoulder's mode 4 % in ωn and 13 % in ζ from
+    # the joint alone's, beyond ζ's 10 % margin: ωn and ζ are the coupled loops', and the overshoot, settling and
+    # peak effort of the joint alone are not applicable; its rest (statics, the elbow where it ends) stands.
+    controllers = {"elbow_position_controller": {"pid": {"p": 30.0, "d": 0.5}}}
+    metrics = run_scenario(load_scenario(write_arm(tmp_path, -0.7, -0.8, controllers=controllers)), tmp_path / "out")
+    shift = metrics["theory"]["coupling"]
+    assert shift["damping_ratio"] > 0.1 and metrics["theory"]["mode_source"] == "coupled loops"
+    dominant = metrics["theory"]["modes"][0]
+    assert metrics["expected"]["natural_frequency_rad_s"] == dominant["natural_frequency_rad_s"]
+    assert metrics["natural_frequency_rad_s"] == pytest.approx(dominant["natural_frequency_rad_s"], rel=0.05)
+    for key in ("overshoot_pct", "settling_time_s", "peak_effort_n_m"):
+        assert metrics["expected"][key] is None
+        assert "the other joints' loops move shoulder's mode" in metrics["not_applicable"][key]
+    assert metrics["expected"]["steady_state_error_rad"] == pytest.approx(metrics["steady_state_error_rad"],
+                                                                          abs=0.02 * 0.1)
+
+
 def test_the_cli_prints_each_warning(tmp_path, capsys):
     from jointctl.cli import main
 
