@@ -163,6 +163,27 @@ def test_step_fit_sees_the_poles_through_a_loop_zero():
     assert result.settling_time_s == pytest.approx(settle, abs=2e-3)
 
 
+def test_a_response_carried_past_its_final_value_by_the_laws_zero_is_not_called_critically_damped():
+    # PD loop with the derivative on the error, its poles real (m 1.01 kg, b + d = 80 N·s/m, p 400 N/m:
+    # ζ of the poles 1.98): (d s + p)/(m s² + (b + d) s + p) overshoots 4.85 % on the zero alone. A damped
+    # sinusoid fitted to it runs to ζ -> 1 (0.9999995 before), which says "no overshoot"; the figures are those
+    # of the second-order loop that overshoots as much and peaks as late, and the note says why.
+    m, c, p, d = 1.01, 80.0, 400.0, 80.0
+    loop = signal.lti([d, p], [m, c, p])
+    t = np.arange(0, 3.0, DT)
+    tau = t[t >= 0.5] - 0.5
+    _, y = signal.step(loop, T=tau)
+    position = np.concatenate([np.zeros(np.count_nonzero(t < 0.5)), 0.01 * y])
+    command = np.where(t < 0.5, 0.0, 0.01)
+    result = step_response(t, command, position, step_time_s=0.5)
+    assert 4.5 < result.overshoot_pct < 5.2
+    zeta = -math.log(result.overshoot_pct / 100) / math.hypot(math.pi, math.log(result.overshoot_pct / 100))
+    assert result.damping_ratio == pytest.approx(zeta, rel=1e-9)  # 0.69: what 4.85 % means
+    wn = math.pi / (result.peak_time_s * math.sqrt(1 - zeta**2))
+    assert result.natural_frequency_rad_s == pytest.approx(wn, rel=1e-9)
+    assert "does not oscillate" in result.fit_note and "zero" in result.fit_note
+
+
 def test_step_with_accumulated_time_and_step_between_samples():
     # Time stamps from repeated addition (not exact multiples) and a step time
     # that is not on a sample.

@@ -94,8 +94,12 @@ def test_the_feed_forward_holds_the_nominal_mass_so_a_payload_droops_by_its_weig
     # 0.3 m step: below 3 µm with m = 3.01 kg (2 kg on board), less without.
     assert metrics[0.0]["steady_state_error_m"] == pytest.approx(0.0, abs=1e-5)
     assert metrics[2.0]["steady_state_error_m"] == pytest.approx(2.0 * G / KP, abs=1e-5)
-    # The step theory knows the simulated robot and the controllers' model: it expects the same droop.
-    assert metrics[2.0]["expected"]["steady_state_error_m"] == pytest.approx(2.0 * G / KP, rel=1e-6)
+    # The step theory knows the simulated robot and the controllers' model: it expects the same droop (read as the
+    # run's is, over the last 0.8 s, where the 0.3 m step still rings by 0.3·e^(-b/(2m)·7.2 s) < 2 µm), and the
+    # run's own final value to the model's accuracy.
+    assert metrics[2.0]["expected"]["steady_state_error_m"] == pytest.approx(2.0 * G / KP, abs=2e-6)
+    assert metrics[2.0]["expected"]["steady_state_error_m"] == pytest.approx(metrics[2.0]["steady_state_error_m"],
+                                                                             abs=1e-9)
 
 
 def test_a_robot_yaml_names_its_payload_link(tmp_path):

@@ -48,6 +48,10 @@ FloatArray = NDArray[np.float64]
 _MIN_POST_STEP_SAMPLES = 20
 _INITIAL_VALUE_SAMPLES = 5  # samples just before the step averaged for y_initial
 _ENVELOPE_TIME_CONSTANTS = 8.0  # default fit window: until exp(-8) of the envelope
+#: Above this fitted ζ the envelope decays by more than exp(-8) within half a damped period (σ·π/ωd > 8): the
+#: fitted motion does not oscillate within the window, and its textbook overshoot, exp(-πζ/√(1-ζ²)) < exp(-8)
+#: (0.034 %), is below what the fit needs to run at all (0.1 % of the step).
+_NO_OSCILLATION_ZETA = _ENVELOPE_TIME_CONSTANTS / math.hypot(math.pi, _ENVELOPE_TIME_CONSTANTS)
 
 
 class AnalysisError(JointCtlError, ValueError):
@@ -127,8 +131,10 @@ class StepResponse(_Result):
     final_value: float | None
     fit_window_s: float
     fit_rms_error: float
-    #: Why ωn and ζ are NaN (None when they were fitted): a response that does not overshoot
-    #: (an overdamped loop, or ζ above about 0.9) has no oscillation to fit.
+    #: Why ωn and ζ are not the fitted oscillation's (None when they are): NaN for a response that does
+    #: not overshoot (an overdamped loop, or ζ above about 0.9: no oscillation to fit); for a response
+    #: that overshoots but whose fit does not oscillate (a zero of the loop carried it past its final
+    #: value), those of the second-order loop that overshoots as much and peaks as late.
     fit_note: str | None = None
     moving_at_step: bool | None = None
     motion_at_step: float | None = None
@@ -339,6 +345,16 @@ def step_response(
     samples, relative to y_initial (just before the step) and y_final (mean of
     the last 10 % of the record).
 
+    A fit whose oscillation the record cannot show (zeta above 0.93: its
+    envelope falls by more than exp(-8) in half a damped period) while the
+    samples overshoot is no description of that overshoot: the poles are (near)
+    real and a zero of the loop -- the derivative on the error, whose step
+    response is (d s + p)/(m s^2 + c s + p) -- carried the response past its
+    final value (the fit runs to zeta -> 1 there). ``damping_ratio`` is then the
+    zeta whose second-order step overshoots as much, -ln(Mp)/sqrt(pi^2 + ln(Mp)^2),
+    ``natural_frequency_rad_s`` the wn that peaks at the measured peak time,
+    pi/(tp sqrt(1 - zeta^2)), and ``fit_note`` says so with the fitted zeta.
+
     Raises:
         AnalysisError: the command has no step at ``step_time_s``, changes again
             later, the record is too short, or the response does not overshoot
@@ -483,14 +499,32 @@ def step_response(
         envelope = np.exp(-sigma * x)
         return [envelope * np.cos(omega_d * x), envelope * np.sin(omega_d * x)]
 
+    zeta, note = sigma / wn, None
+    if zeta > _NO_OSCILLATION_ZETA and 0.0 < overshoot_pct < 100.0:
+        wn, zeta, note = _equivalent_second_order(overshoot_pct, peak_time_s, zeta)
     return StepResponse(
         natural_frequency_rad_s=wn,
-        damping_ratio=sigma / wn,
+        damping_ratio=zeta,
         fit_window_s=float(tau_w[-1]),
         fit_rms_error=float(np.sqrt(np.mean(residual**2))),
+        fit_note=note,
         **read_off,
         **motion(oscillation),
     )
+
+
+def _equivalent_second_order(overshoot_pct: float, peak_time_s: float, fitted_zeta: float) -> tuple[float, float, str]:
+    """(ωn [rad/s], ζ, note) of the second-order loop ``ωn²/(s² + 2ζωn s + ωn²)`` whose step overshoots
+    ``overshoot_pct`` [%] and peaks at ``peak_time_s`` [s], for a response whose fitted oscillation (ζ
+    ``fitted_zeta``) does not oscillate."""
+    log_mp = math.log(overshoot_pct / 100.0)
+    zeta = -log_mp / math.hypot(math.pi, log_mp)
+    wn = math.pi / (peak_time_s * math.sqrt(1.0 - zeta**2))
+    note = (f"the fitted motion does not oscillate (ζ {fitted_zeta:.6g}: its envelope falls by more than e^"
+            f"{_ENVELOPE_TIME_CONSTANTS:g} in half a period), yet the response overshoots {overshoot_pct:.3g} %: a "
+            "zero of the loop (the derivative on the error) carried it past its final value; ωn and ζ are those of "
+            "the second-order loop that overshoots as much and peaks as late")
+    return wn, zeta, note
 
 
 def _not_settled(t_tail: FloatArray, e_tail: FloatArray, band: float, settle_band: float) -> str | None:

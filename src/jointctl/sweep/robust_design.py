@@ -330,7 +330,7 @@ def _finite(value: float) -> float:
 def integral_clamp(loop: JointLoop, plants: Sequence[Plant], start: float, step: float) -> float:
     """The integral's clamp [N or N·m] against a family: twice the largest load over the move that the
     feed-forward leaves it (autotune's rule, the heaviest plant's), within the effort limit."""
-    load = max(abs(member(loop, plant).load(q) - member(loop, plant).model_load(q))
+    load = max(abs(member(loop, plant).load(q) - member(loop, plant).feedforward_effort(q))
                for plant in plants for q in (start, start + step))
     clamp = 2.0 * load if load > 0 else 0.1 * loop.effort_limit
     return float(min(clamp, loop.effort_limit)) if math.isfinite(loop.effort_limit) else float(clamp)

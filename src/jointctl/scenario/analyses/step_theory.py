@@ -1,4 +1,12 @@
-"""What a position loop's step should do, from the robot model, and where that theory stops.
+"""What a position loop's step should do, and where that theory stops.
+
+**The loop as it runs.** The figures a run is compared with -- overshoot, 2 % settling time, steady-state
+error, peak effort, and ωn and ζ where the linear loops below do not give them -- are read off the joint's
+loop as it runs (:mod:`jointctl.scenario.analyses.step_model`: the controller's law with its derivative kick,
+the effort clamp, gravity over the move, the feed-forward, the integral, the latency, MuJoCo's integration,
+from where the run started) exactly as the run's own are read
+(:func:`~jointctl.metrics.response.step_response`). It is the loop autotune designs on: for the same gains
+and step its figures read as autotune reads them (``model_step``) are autotune's ``model``.
 
 **Signs.** The robot moves as ``M(q)·q̈ + b·q̇ + τ_hold(q) = τ``: ``τ_hold(q)`` is the effort that
 holds the pose still against gravity (MuJoCo's inverse dynamics at rest, the bias force;
@@ -20,7 +28,7 @@ solved numerically (a bracketing root search over half a turn each side of ``r``
 joint, Newton's method for a prismatic one, whose holding effort does not change with its own
 position). The steady-state error is ``e_ss = r - q* = τ_hold(q*)/Kp``: positive when the joint
 must push towards +q to hold (the 1-DOF piston under gravity, ``m·g/Kp``), negative when gravity
-pulls it past its reference.
+pulls it past its reference. (The loop as it runs finds the same rest, and an integral's.)
 
 **About the rest.** With ``q = q* + x``, ``I·ẍ = -Kp·x - (b + Kd)·ẋ - (∂τ_hold/∂q)·x``: the loop is a
 spring-damper of stiffness ``k = Kp + ∂τ_hold/∂q = Kp - ∂τ_g/∂q`` [N/m or N·m/rad], inertia
@@ -28,23 +36,33 @@ spring-damper of stiffness ``k = Kp + ∂τ_hold/∂q = Kp - ∂τ_g/∂q`` [N/m
 (``held_*``: the other joints held rigidly). The other joints are held by loops of their own,
 coupled to this one through ``M`` and gravity: all of them are linearised together
 (:func:`jointctl.metrics.linear_loops.linear_step`: ``K = diag(Kp) + ∂τ_hold/∂q``, a row without
-gravity for a joint with gravity feed-forward, ``D = diag(b + Kd)``), and the expected ωn, ζ and
-overshoot are those of the mode that dominates the analysed joint's response. With one joint, or
-stiff enough neighbours, that is ``√(k/I)``. The inertia is ``M_jj`` without the ``h·b`` that
+gravity for a joint with gravity feed-forward, ``D = diag(b + Kd)``), and the expected ωn and ζ are
+those of the mode that dominates the analysed joint's response, where these loops describe the run:
+the effort limit never shaped the step (the loop as it runs answers as it would without it), no
+other joint's effort sat at its limit, the controller does not integrate, the dominant mode
+oscillates and no other carries more than :data:`MODE_SHARE_LIMIT` of the response. With one joint,
+or stiff enough neighbours, that is ``√(k/I)``. The inertia is ``M_jj`` without the ``h·b`` that
 MuJoCo's implicit damping adds to it: the effort held over each loop period takes about half of that
 back, and the sampled loop's ωn is that of ``M_jj + h·b/2`` to 0.05 % (0.25 % below the continuous
 figure on the 1-DOF robot), well inside the ωn margin.
 
-**Not applicable.** Expectations are None, with the reason, where the linear theory does not
-describe the run: the joint's loop is not a position loop, its controller integrates the error
-(third order, resting at the reference only once the integral has caught up), the effort sat at its
-limit after the step (the transient figures; the steady-state error too if it still does at the
-end; or another joint's effort did, its loop being part of the model), the rest lies beyond the
-joint's range or needs more than its effort limit, the linearised loops are unstable or overdamped
-(no oscillation whose ωn a fit could recover), or another mode carries more than
-:data:`MODE_SHARE_LIMIT` of the joint's response. Not modelled, and not detected: friction the
-URDF lacks, the other joints' integrators (their slow action left out), a step so large that the
-gravity stiffness changes much over it (the theory linearises about the final pose).
+**The joint alone.** The loop as it runs holds the other joints where they end. How much their loops
+move the joint's own mode is the linear loops' answer: the dominant mode against the joint's held
+alone (``coupling``: the relative changes of its ωn and ζ). Within :data:`ALONE_SHARE` the joint is
+alone, and every figure is the loop as it runs' (ωn and ζ too, read off it as the run's are fitted:
+to the last digits where the model is exact). Beyond, ωn and ζ are the linear loops' where these
+describe the run, and not applicable where they do not (a fit of the joint alone's response would
+carry the neighbours' share); beyond the ωn and ζ margins (5 %, 10 %) the model of the joint alone
+does not describe its step, and its transient figures and peak effort are not applicable either. The
+steady-state error, a matter of statics with the others where they end, stands.
+
+**Not applicable.** Expectations are None, with the reason, where the theory does not describe the
+run: the joint's loop is not a position loop, the rest lies beyond the joint's range or needs more
+than its effort limit, the effort is at its limit at the end of the run, the linearised loops have
+no stable rest, the neighbours' loops move the joint's mode beyond the margins, or the model's own
+response has no such figure (it does not settle within the record, or does not overshoot: no ωn and
+ζ to fit). Not modelled, and not detected: friction the URDF lacks, the other joints' integrators
+(their slow action left out of the linear loops), the joint's range limits reached on the way.
 """
 
 from __future__ import annotations
@@ -58,10 +76,12 @@ from scipy.optimize import brentq
 from jointctl.control.joint_controllers import (DERIVATIVE_ERROR, JointPositionController,
                                                 JointVelocityController)
 from jointctl.hardware.interface import EFFORT
-from jointctl.metrics.expectations import saturation_share
+from jointctl.metrics.expectations import DAMPING_RATIO_MARGIN, NATURAL_FREQUENCY_MARGIN, saturation_share
 from jointctl.metrics.linear_loops import LinearStep, linear_step
+from jointctl.metrics.response import AnalysisError, step_response
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.recording.trace import Trace
+from jointctl.scenario.analyses.step_model import StepModel, step_model
 from jointctl.scenario.session import Session
 
 #: Another mode whose RMS part of the joint's response exceeds this share of the dominant mode's
@@ -76,35 +96,41 @@ REST_SEARCH_POINTS = 721
 #: final value.
 FINAL_SHARE = 0.1
 
-TRANSIENT = ("natural_frequency_rad_s", "damping_ratio", "overshoot_pct")
+#: The neighbours' loops move the joint's mode by less than this share (ωn, ζ): the joint is alone, and every
+#: figure is the loop as it runs. A tenth of a percent: under what the sampling itself moves ωn from the
+#: continuous loop's (h·b/(4·I): 0.25 % on the 1-DOF robot at 1 kHz).
+ALONE_SHARE = 1e-3
+
+MODE = ("natural_frequency_rad_s", "damping_ratio")
+TRANSIENT = (*MODE, "overshoot_pct", "settling_time_s")
 STEADY = "steady_state_error"
+PEAK = "peak_effort"
+EXPECTED = (*TRANSIENT, STEADY, PEAK)
 
 
 @dataclass
 class StepTheory:
     """Expected step figures of one joint (None where not applicable, ``not_applicable`` saying
-    why) and how they were reached: ``rest_position`` q* [m or rad], ``holding_effort`` τ_hold(q*)
-    [N or N·m], ``gravity_stiffness`` ∂τ_hold/∂q at q* [N/m or N·m/rad], ``stiffness`` k,
-    ``inertia`` M_jj(q*) [kg or kg·m²], ``held_*`` the figures with the other joints held rigidly,
-    ``modes`` the coupled loops' modes (ωn [rad/s], ζ, share of the joint's response), dominant
-    first, ``saturated_share_after_step`` of the cycles after the step at the effort limit.
-    ``linear`` is the linearised loops' response to the step (None where they have none), for
+    why) and how they were reached: ``model`` the loop as it runs' figures read as the run's are,
+    ``model_step`` read as autotune reads a step (:class:`~jointctl.metrics.step_loop.StepFigures`),
+    ``rest_position`` q* [m or rad], ``holding_effort`` τ_hold(q*) [N or N·m], ``gravity_stiffness``
+    ∂τ_hold/∂q at q* [N/m or N·m/rad], ``stiffness`` k, ``inertia`` M_jj(q*) [kg or kg·m²],
+    ``held_*`` the figures with the other joints held rigidly, ``modes`` the coupled loops' modes (ωn
+    [rad/s], ζ, share of the joint's response), dominant first, ``coupling`` how far they move the
+    joint's own, ``mode_source`` where ωn and ζ come from, ``saturated_share_after_step`` of the
+    cycles after the step at the effort limit. ``loop`` is the loop as it runs and its response
+    (:class:`~jointctl.scenario.analyses.step_model.StepModel`; None for no position loop), for
     :meth:`response`."""
 
     expected: dict[str, float | None] = field(default_factory=dict)
     not_applicable: dict[str, str] = field(default_factory=dict)
     details: dict = field(default_factory=dict)
-    linear: LinearStep | None = None
+    loop: StepModel | None = None
 
-    def response(self, time_s, step_time_s: float) -> np.ndarray | None:
-        """The joint's position [m or rad] at ``time_s`` [s] as the linearised loops move it, the
-        step at ``step_time_s``: the rest before the step (as the linear model has it), the rest
-        ``rest_position`` after; None without a linear model."""
-        if self.linear is None:
-            return None
-        tau = np.asarray(time_s, dtype=float) - step_time_s
-        step = self.details["step"]
-        return self.details["rest_position"] + step * (self.linear.position(tau) - self.linear.final)
+    def response(self, time_s) -> np.ndarray | None:
+        """The joint's position [m or rad] at the loop times ``time_s`` [s] as the loop as it runs moves it
+        (from where the run started); None without one."""
+        return None if self.loop is None else self.loop.position_at(time_s)
 
     def skip(self, keys, reason: str) -> None:
         """Mark ``keys`` not applicable for ``reason`` (the first reason given stays)."""
@@ -124,10 +150,12 @@ def final_pose(session: Session, trace: Trace) -> np.ndarray:
     return np.array([float(np.mean(trace.joint(j, "position")[-n_tail:])) for j in session.hardware.joint_names])
 
 
-def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float) -> StepTheory:
-    """The expected steady-state error, ωn, ζ and overshoot of ``joint``'s step at ``step_time_s``
-    (see the module docstring), with the reasons where they do not apply."""
-    theory = StepTheory({key: None for key in (*TRANSIENT, STEADY)})
+def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float,
+                settle_band: float = 0.02) -> StepTheory:
+    """The expected ωn, ζ, overshoot, settling time (within ±``settle_band`` of the step), steady-state
+    error and peak effort of ``joint``'s step at ``step_time_s`` (see the module docstring), with the
+    reasons where they do not apply."""
+    theory = StepTheory(dict.fromkeys(EXPECTED))
     spec = session.robot.joint(joint)
     unit = "N" if spec.is_prismatic else "N·m"
     limit = spec.limits.effort if spec.limits is not None and spec.limits.effort > 0 else math.inf
@@ -141,30 +169,9 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float) 
     if not isinstance(controller, JointPositionController):
         what = ("a velocity loop" if isinstance(controller, JointVelocityController)
                 else "no loop" if controller is None else type(controller).__name__)
-        theory.skip((*TRANSIENT, STEADY), f"{joint} is driven by {what}, not a position loop")
+        theory.skip(EXPECTED, f"{joint} is driven by {what}, not a position loop")
         return theory
     gains = controller.pid.gains
-    if gains.i > 0:
-        theory.skip((*TRANSIENT, STEADY), f"the controller integrates the error (i = {gains.i:g}): the loop is "
-                                          "third order and rests at its reference once the integral has caught "
-                                          "up, which this theory does not model")
-        return theory
-    if share_after > 0:
-        theory.skip(TRANSIENT, f"the effort sat at its {limit:g} {unit} limit in {100 * share_after:.3g} % of the "
-                               "cycles after the step: the loop was not linear")
-    for other in session.hardware.joint_names:  # the other joints' loops are part of the linear model
-        limits = session.robot.joint(other).limits
-        other_limit = limits.effort if limits is not None and limits.effort > 0 else math.inf
-        other_share = saturation_share(trace.joint(other, "effort")[t >= step_time_s], other_limit)
-        if other != joint and other_share > 0:
-            other_unit = "N" if session.robot.joint(other).is_prismatic else "N·m"
-            theory.skip(TRANSIENT, f"{other}'s effort sat at its {other_limit:g} {other_unit} limit in "
-                                   f"{100 * other_share:.3g} % of the cycles after the step: the coupled loops were "
-                                   "not linear")
-    if share_end > 0:
-        theory.skip((STEADY,), f"the effort is at its {limit:g} {unit} limit at the end of the run: the loop "
-                               "does not hold a rest")
-
     names = session.hardware.joint_names
     j = names.index(joint)
     reference = trace.joint(joint, "reference")
@@ -172,19 +179,26 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float) 
     before = np.flatnonzero(t < step_time_s)
     r0 = float(reference[before[-1]]) if before.size else r
     pose = final_pose(session, trace)
+
+    # The loop as it runs, read as the run is.
+    theory.loop = model = step_model(session, trace, joint, controller, dict(zip(names, pose)))
+    theory.details["model_step"] = model.figures().as_dict()
+    figures = _model_figures(theory, model, t, reference, step_time_s, settle_band)
+
+    # The linearised loops about the rest: where the loop rests, and how the neighbours' loops move its mode.
     dynamics = RobotDynamics(session.plant, session.scenario.gravity_m_s2, joints=names)
     feedforward = "gravity" in controller.feedforward_terms
-    model = _controllers_model(session, names)
+    model_dynamics = _controllers_model(session, names)
 
     def holding(q: float) -> float:
         pose[j] = q
-        if feedforward and model is None:
+        if feedforward and model_dynamics is None:
             return 0.0
         dynamics.set_pose(pose, inertia=False)
         hold = float(dynamics.gravity_at_pose()[j])
         if feedforward:
-            model.set_pose(pose, inertia=False)
-            hold -= float(model.gravity_at_pose()[j])
+            model_dynamics.set_pose(pose, inertia=False)
+            hold -= float(model_dynamics.gravity_at_pose()[j])
         return hold
 
     kp = gains.p
@@ -193,26 +207,26 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float) 
                      lambda q: (holding(q + DIFFERENCE_STEP) - holding(q - DIFFERENCE_STEP)) / (2 * DIFFERENCE_STEP)
                      + kp)
     except ValueError as exc:
-        theory.skip((*TRANSIENT, STEADY), str(exc))
+        theory.skip(EXPECTED, str(exc))
         return theory
     hold = holding(rest)
     theory.details.update(rest_position=rest, holding_effort=hold)
     lower = spec.limits.lower if spec.limits is not None and spec.limits.lower is not None else -math.inf
     upper = spec.limits.upper if spec.limits is not None and spec.limits.upper is not None else math.inf
     if spec.type != "continuous" and not lower <= rest <= upper:
-        theory.skip((*TRANSIENT, STEADY), f"the loop would rest at {rest:.4g}, beyond the joint's range "
-                                          f"[{lower:g}, {upper:g}]: it rests on its limit")
+        theory.skip(EXPECTED, f"the loop would rest at {rest:.4g}, beyond the joint's range [{lower:g}, {upper:g}]: "
+                              "it rests on its limit")
     elif abs(hold) >= limit:
-        theory.skip((*TRANSIENT, STEADY), f"holding the rest takes {abs(hold):.4g} {unit}, more than the joint's "
-                                          f"{limit:g} {unit} limit")
-    if STEADY not in theory.not_applicable:
-        theory.expected[STEADY] = r - rest
+        theory.skip(EXPECTED, f"holding the rest takes {abs(hold):.4g} {unit}, more than the joint's {limit:g} {unit} "
+                              "limit")
+    if share_end > 0:
+        theory.skip((STEADY,), f"the effort is at its {limit:g} {unit} limit at the end of the run: the loop "
+                               "does not hold a rest")
 
-    # The linearised loops of every joint about the final pose, the analysed one at its rest.
     pose[j] = rest
     dynamics.set_pose(pose)
     mass = dynamics.mass_matrix()
-    stiffness, damping = _loops(session, dynamics, pose, model)
+    stiffness, damping = _loops(session, dynamics, pose, model_dynamics)
     gravity_stiffness = float(stiffness[j, j] - kp)
     inertia = float(mass[j, j])
     k = kp + gravity_stiffness
@@ -225,22 +239,123 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float) 
     kick = gains.d if controller.derivative == DERIVATIVE_ERROR else 0.0
     try:
         response = linear_step(mass, stiffness, damping, j, kp, kick)
+        held = linear_step(mass[j:j + 1, j:j + 1], stiffness[j:j + 1, j:j + 1], damping[j:j + 1, j:j + 1], 0, kp,
+                           kick)
     except ValueError as exc:
-        theory.skip(TRANSIENT, f"about the rest pose: {exc}")
-        return theory
-    theory.linear = response
-    theory.details["modes"] = [{"natural_frequency_rad_s": m.natural_frequency_rad_s,
-                                "damping_ratio": m.damping_ratio, "share": m.share} for m in response.modes]
-    if not response.oscillating:
-        theory.skip(TRANSIENT[:2], "the joint's response is overdamped: no oscillation to fit an ωn and ζ to")
-    if response.second_share > MODE_SHARE_LIMIT:
-        theory.skip(TRANSIENT[:2], f"a second mode carries {100 * response.second_share:.3g} % of the joint's "
-                                   f"response (more than {100 * MODE_SHARE_LIMIT:g} %): no single ωn and ζ")
-    for key, value in zip(TRANSIENT, (response.natural_frequency_rad_s, response.damping_ratio,
-                                      response.overshoot_pct)):
-        if key not in theory.not_applicable:
-            theory.expected[key] = float(value)
+        response = held = None
+        linear = f"about the rest pose: {exc}"
+    else:
+        theory.details["modes"] = [{"natural_frequency_rad_s": m.natural_frequency_rad_s,
+                                    "damping_ratio": m.damping_ratio, "share": m.share} for m in response.modes]
+        linear = _linear_reason(session, trace, joint, step_time_s, controller, model, response)
+
+    # The joint alone, or its neighbours' loops moving its mode.
+    shift = (0.0, 0.0) if len(names) == 1 else _shift(response, held)
+    moved = None
+    if shift is None:
+        moved = "the linearised loops have no mode to compare the joint alone with"
+    else:
+        theory.details["coupling"] = {"natural_frequency": shift[0], "damping_ratio": shift[1]}
+        if shift[0] > NATURAL_FREQUENCY_MARGIN.value or shift[1] > DAMPING_RATIO_MARGIN.value:
+            moved = (f"the other joints' loops move {joint}'s mode from ωn {held.natural_frequency_rad_s:.4g} rad/s, "
+                     f"ζ {held.damping_ratio:.3g} (the joint alone) to ωn {response.natural_frequency_rad_s:.4g} "
+                     f"rad/s, ζ {response.damping_ratio:.3g}: the model of the joint alone does not describe its step")
+    alone = shift is not None and max(shift) <= ALONE_SHARE
+    for key in (*TRANSIENT[2:], PEAK):
+        _expect(theory, key, figures, moved)
+    _expect(theory, STEADY, figures, None)
+    if not alone and linear is None:
+        theory.details["mode_source"] = "coupled loops"
+        for key, value in zip(MODE, (response.natural_frequency_rad_s, response.damping_ratio)):
+            if key not in theory.not_applicable:
+                theory.expected[key] = float(value)
+    elif alone:
+        theory.details["mode_source"] = "loop as it runs"
+        for key in MODE:
+            _expect(theory, key, figures, None)
+    else:
+        coupled = moved or (f"the other joints' loops move {joint}'s mode by {100 * shift[0]:.2g} % in ωn and "
+                            f"{100 * shift[1]:.2g} % in ζ, which the loop as it runs (the joint alone) leaves out")
+        theory.skip(MODE, f"{linear}; and {coupled}")
     return theory
+
+
+def _model_figures(theory: StepTheory, model: StepModel, t: np.ndarray, reference: np.ndarray, step_time_s: float,
+                   settle_band: float) -> dict[str, float | None] | str:
+    """The loop as it runs' figures at the trace's times ``t``, read as the run's are (:data:`EXPECTED`; None
+    where the reading has none, with its reason under ``"notes"``), also kept in ``theory.details["model"]``
+    (with its rise time and final value); or the reason it has none."""
+    try:
+        read = step_response(t, reference, model.position_at(t), step_time_s=step_time_s, settle_band=settle_band)
+    except AnalysisError as exc:
+        return f"the loop as it runs gives no step to read: {exc.message}"
+    # The peak effort as the trace records it (what acted over the period before each sample: a trace recorded
+    # every few cycles may miss a one-cycle kick, and so does this).
+    after = model.measured_effort_at(t[t >= step_time_s])
+    peak = float(np.max(np.abs(after))) if after.size else None
+    values = read.as_dict()
+    found = {key: values.get(key) for key in (*TRANSIENT, STEADY)}
+    found = {key: (None if value is None or not math.isfinite(value) else float(value)) for key, value in found.items()}
+    found[PEAK] = peak
+    theory.details["model"] = {**found, "rise_time_s": values.get("rise_time_s"),
+                               "final_value": values.get("final_value")}
+    notes = {}
+    for key in found:
+        if found[key] is None:
+            notes[key] = (f"the loop as it runs has none: {read.fit_note}" if key in MODE and read.fit_note
+                          else f"the loop as it runs has none: {read.not_settled}" if read.not_settled
+                          else "the loop as it runs has none")
+    found["notes"] = notes
+    return found
+
+
+def _expect(theory: StepTheory, key: str, figures, reason: str | None) -> None:
+    """``key`` expected from the loop as it runs' ``figures``, unless ``reason`` (or the figures) say otherwise."""
+    if reason is not None:
+        theory.skip((key,), reason)
+    elif isinstance(figures, str):
+        theory.skip((key,), figures)
+    elif figures.get(key) is None:
+        theory.skip((key,), figures["notes"].get(key, "the loop as it runs has none"))
+    elif key not in theory.not_applicable:
+        theory.expected[key] = figures[key]
+
+
+def _linear_reason(session: Session, trace: Trace, joint: str, step_time_s: float, controller, model: StepModel,
+                   response: LinearStep) -> str | None:
+    """Why the linearised loops do not describe the step's ωn and ζ (None when they do): an integral, the
+    effort limit shaping the step (the loop as it runs answers otherwise without it), another joint's effort at
+    its limit, no oscillation, two modes."""
+    gains = controller.pid.gains
+    if gains.i > 0:
+        return (f"the controller integrates the error (i = {gains.i:g}): the loop is third order and rests at its "
+                "reference once the integral has caught up")
+    if model.limit_acted():
+        return "the effort limit shaped the step: the loop was not linear"
+    t = trace.time_s
+    for other in session.hardware.joint_names:  # the other joints' loops are part of the linear model
+        limits = session.robot.joint(other).limits
+        other_limit = limits.effort if limits is not None and limits.effort > 0 else math.inf
+        other_share = saturation_share(trace.joint(other, "effort")[t >= step_time_s], other_limit)
+        if other != joint and other_share > 0:
+            other_unit = "N" if session.robot.joint(other).is_prismatic else "N·m"
+            return (f"{other}'s effort sat at its {other_limit:g} {other_unit} limit in {100 * other_share:.3g} % of "
+                    "the cycles after the step: the coupled loops were not linear")
+    if not response.oscillating:
+        return "the joint's response is overdamped: no oscillation to fit an ωn and ζ to"
+    if response.second_share > MODE_SHARE_LIMIT:
+        return (f"a second mode carries {100 * response.second_share:.3g} % of the joint's response (more than "
+                f"{100 * MODE_SHARE_LIMIT:g} %): no single ωn and ζ")
+    return None
+
+
+def _shift(coupled: LinearStep | None, alone: LinearStep | None) -> tuple[float, float] | None:
+    """The relative changes [-] of the joint's dominant mode's ωn and ζ from the joint alone (the others held) to
+    the coupled loops; None without both."""
+    if coupled is None or alone is None:
+        return None
+    zeta = abs(coupled.damping_ratio / alone.damping_ratio - 1) if alone.damping_ratio else 0.0
+    return abs(coupled.natural_frequency_rad_s / alone.natural_frequency_rad_s - 1), zeta
 
 
 def _rest(residual, reference: float, prismatic: bool, slope) -> float:
