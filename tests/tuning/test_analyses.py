@@ -47,9 +47,10 @@ def test_an_analysis_changes_nothing_live(tuner) -> None:
     time_before = tuner.loop.time_s
     reply = run_analysis(tuner, parse_request(f'{{"type": "autotune", "controller": "{CONTROLLER}", '
                                               '"bandwidth_hz": 5}'))
-    # The chapter's file runs ros_controllers' law (derivative on the error): its zero lends bandwidth,
-    # p ≈ 385 N/m for 5 Hz (961 with the derivative on the measurement).
-    assert 300 < reply["result"]["gains"]["p"] < 500 and reply["result"]["derivative"] == "error"
+    # The chapter's file runs ros_controllers' law (derivative on the error), designed at the page's 0.1 m step,
+    # whose kick the 1000 N limit clamps: p 525 N/m (385 for small moves' 5 Hz; 961 with the derivative on the
+    # measurement). Whatever the gains, the live loop keeps its own.
+    assert 300 < reply["result"]["gains"]["p"] < 961 and reply["result"]["derivative"] == "error"
     assert tuner.groups[CONTROLLER].values()["p"] == 400.0 and tuner.loop.time_s == time_before
 
 

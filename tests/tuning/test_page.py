@@ -340,17 +340,17 @@ def test_identify_on_the_live_robot(browser, tune):
     assert page_state(browser, "lastTime") - before_s >= 13.0 - 0.1
 
 
-def test_an_autotune_the_effort_cannot_meet_is_refused_on_the_page(browser, tune):
+def test_an_autotune_step_beyond_the_joints_range_is_refused_on_the_page(browser, tune):
     server = tune("one_dof", "--controllers", "position")
     open_page(browser, server)
     choose(browser, "analysis-controller", CONTROLLER)
-    # The file's ros_control law (derivative on the error) needs p ≈ 2500 N/m for 25 Hz: 0.5 m asks 1260 N.
+    # The piston holds -0.5 m in its [-1, 0] m range: a 0.5 m step would overshoot past 0.
     type_into(browser, "tune-bandwidth", "25")
     type_into(browser, "tune-step", "0.5")
     errors = len(page_state(browser, "errors"))
     browser.find_element("id", "autotune").click()
     wait_for(lambda: len(page_state(browser, "errors")) > errors, what="the refusal")
-    assert "the most this step allows is" in last_error(browser)["message"]
+    assert "beyond the joint's range [-1, 0]" in last_error(browser)["message"]
     assert "refused" in browser.find_element("id", "analysis-status").text
     assert browser.find_element("id", "tune-apply").get_attribute("disabled") == "true"
 

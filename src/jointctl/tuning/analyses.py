@@ -49,7 +49,8 @@ CURVE_POINTS = 200
 
 def live_copy(tuner, overrides=()) -> Scenario:
     """The page's scenario with its live PID gains, gravity and pose (the joints' measured
-    positions as initial positions), plus ``overrides`` (``controllers.NAME.pid.p=VALUE`` strings)."""
+    positions as initial positions), plus ``overrides``: ``controllers.NAME.pid.p=VALUE`` strings, and
+    ``initial_positions.JOINT=VALUE`` (where a check starts the joint)."""
     scenario = tuner.scenario
     merged = dict(scenario.controller_overrides)
     for name, group in tuner.groups.items():
@@ -57,12 +58,16 @@ def live_copy(tuner, overrides=()) -> Scenario:
             values = group.values()
             for key in ("p", "i", "d"):
                 merged[f"{name}.pid.{key}"] = values[key]
+    placed = {}
     for item in overrides:
         key, value = parse_override(item)
-        merged[key.removeprefix("controllers.")] = value
+        if key.startswith("initial_positions."):
+            placed[key.removeprefix("initial_positions.")] = value
+        else:
+            merged[key.removeprefix("controllers.")] = value
     gravity = tuner._gravity_z()
     hardware = tuner.hardware
-    pose = {**scenario.initial_positions, **dict(zip(hardware.joint_names, hardware.position))}
+    pose = {**scenario.initial_positions, **dict(zip(hardware.joint_names, hardware.position)), **placed}
     changes: dict[str, Any] = {"controller_overrides": merged, "commands": {}, "objects": (),
                                "initial_positions": pose}
     if gravity is not None:
