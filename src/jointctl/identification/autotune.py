@@ -618,13 +618,17 @@ def _step_plan(robot, joint: str, pose: dict, safety: Safety, q, v, u, start: fl
     ``--max-velocity``; what binds ("step": the step asked fits)."""
     envelope = envelope_for(robot, joint, start, safety, pose=pose)
     lower, upper = envelope.window
+    # The guard stops a move that comes within its band of the URDF range's ends: so must the plan.
+    band = GUARD_FRACTION * (envelope.upper - envelope.lower) if math.isfinite(envelope.upper - envelope.lower) else 0
+    lower, upper = max(lower, envelope.lower + band), min(upper, envelope.upper - band)
     low, high = float(min(q.min(), start, start + step)), float(max(q.max(), start, start + step))
     unit = envelope.unit
     names = envelope.limit_names()
     if low < lower or high > upper:
         beyond = low if low < lower else high
         raise IdentificationError(f"a step of {step:g} {unit} from {start:.4g} would reach {beyond:.4g} {unit}, "
-                                  f"beyond {names['position']} [{lower:g}, {upper:g}]: ask a smaller --step",
+                                  f"beyond {names['position']} [{envelope.window[0]:g}, {envelope.window[1]:g}] "
+                                  f"less the guard's {band:.3g} {unit} at each end of the range: ask a smaller --step",
                                   field="--step", value=step)
     speed = float(np.abs(v).max())
     if speed > envelope.velocity_max:
