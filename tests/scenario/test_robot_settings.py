@@ -150,7 +150,8 @@ def test_run_with_a_payload_rests_where_the_heavier_mass_sags_to(tmp_path, capsy
     assert metrics["natural_frequency_rad_s"] == pytest.approx(wn, rel=wn * DT)
     assert metrics["damping_ratio"] == pytest.approx(B / (2 * math.sqrt(KP * m)), rel=wn * DT)
     # The analysis's theory is the simulated robot's: it expects what was measured, and warns of nothing.
-    assert metrics["expected"]["steady_state_error_m"] == pytest.approx(sag, rel=1e-6)
+    # The expectation is the model read like the run: the sag, and what is left of the ringing at 12 s.
+    assert metrics["expected"]["steady_state_error_m"] == pytest.approx(sag, abs=2e-5)
     assert metrics["plant"]["moving_mass_kg"] == pytest.approx(m, rel=1e-3)
     assert metrics["warnings"] == [] and "warning" not in captured.err
 

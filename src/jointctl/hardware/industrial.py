@@ -565,6 +565,12 @@ class IndustrialHardware(HardwareInterface):
         if command == self._last_sent or self.fault is not None:
             self._streaming = False  # a tick without a point: the motion (if any) has ended
             return
+        if self._last_sent is None and all(abs(q - p) <= 1e-9 for q, p in zip(command, self.position)):
+            # Holding where the robot is (after a refusal, the executor follows the measured position): no
+            # motion, nothing to send; a motion from here starts a new trajectory (the robot is at rest).
+            self._last_sent = list(command)
+            self._streaming = False
+            return
         if self._last_sent is None or not self._streaming and self._at_rest():
             self._sequence = 0  # a motion from rest: a new trajectory at the controller
         previous = self._last_sent if self._last_sent is not None else list(self.position)
