@@ -46,7 +46,7 @@ def analyse_step(session: Session, trace: Trace, out: Path, params: dict[str, An
     result = step_response(t, cmd, pos, step_time_s=step_time, settle_band=SETTLE_BAND,
                            ramp_s=float(cfg.get("ramp_s", 0.0)))
     plant = joint_plant(session, joint)
-    theory = step_theory(session, trace, joint, step_time, SETTLE_BAND)
+    theory = step_theory(session, trace, joint, step_time, SETTLE_BAND, ramp_s=float(cfg.get("ramp_s", 0.0)))
     joint_units = units(session, joint)
     unit = joint_units.position
     zoom = (step_time - 0.1, step_time + 1.0)

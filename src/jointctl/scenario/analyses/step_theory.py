@@ -151,10 +151,10 @@ def final_pose(session: Session, trace: Trace) -> np.ndarray:
 
 
 def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float,
-                settle_band: float = 0.02) -> StepTheory:
+                settle_band: float = 0.02, ramp_s: float = 0.0) -> StepTheory:
     """The expected ωn, ζ, overshoot, settling time (within ±``settle_band`` of the step), steady-state
-    error and peak effort of ``joint``'s step at ``step_time_s`` (see the module docstring), with the
-    reasons where they do not apply."""
+    error and peak effort of ``joint``'s step at ``step_time_s`` (along a ramp of ``ramp_s`` [s], a step
+    source's; see the module docstring), with the reasons where they do not apply."""
     theory = StepTheory(dict.fromkeys(EXPECTED))
     spec = session.robot.joint(joint)
     unit = "N" if spec.is_prismatic else "N·m"
@@ -183,7 +183,7 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float,
     # The loop as it runs, read as the run is.
     theory.loop = model = step_model(session, trace, joint, controller, dict(zip(names, pose)))
     theory.details["model_step"] = model.figures().as_dict()
-    figures = _model_figures(theory, model, t, reference, step_time_s, settle_band)
+    figures = _model_figures(theory, model, t, reference, step_time_s, settle_band, ramp_s)
 
     # The linearised loops about the rest: where the loop rests, and how the neighbours' loops move its mode.
     dynamics = RobotDynamics(session.plant, session.scenario.gravity_m_s2, joints=names)
@@ -281,12 +281,13 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float,
 
 
 def _model_figures(theory: StepTheory, model: StepModel, t: np.ndarray, reference: np.ndarray, step_time_s: float,
-                   settle_band: float) -> dict[str, float | None] | str:
+                   settle_band: float, ramp_s: float = 0.0) -> dict[str, float | None] | str:
     """The loop as it runs' figures at the trace's times ``t``, read as the run's are (:data:`EXPECTED`; None
     where the reading has none, with its reason under ``"notes"``), also kept in ``theory.details["model"]``
     (with its rise time and final value); or the reason it has none."""
     try:
-        read = step_response(t, reference, model.position_at(t), step_time_s=step_time_s, settle_band=settle_band)
+        read = step_response(t, reference, model.position_at(t), step_time_s=step_time_s, settle_band=settle_band,
+                             ramp_s=ramp_s)
     except AnalysisError as exc:
         return f"the loop as it runs gives no step to read: {exc.message}"
     # The peak effort as the trace records it (what acted over the period before each sample: a trace recorded
