@@ -15,25 +15,34 @@ gets a P (``p``), making ``p / (m s + p + b)`` with bandwidth
 loop's model (python-control, :class:`~jointctl.identification.frequency_response.LoopModel`) is
 solved for the gains whose overshoot and -3 dB bandwidth meet the spec.
 
-**Effort, speed, room.** A step of ``step`` [m or rad; m/s or rad/s for a velocity loop] asks
-``p·step`` at once, on top of the gravity load: when ``p·step + |gravity|`` exceeds the joint's
-effort limit (or ``--max-effort``, when lower) the spec is refused, naming the bandwidth that step
-allows. With the derivative on the error the first cycle asks the kick ``d·step/period`` as well;
-when that exceeds the limit the check steps by the largest step that fits (``check_step``, said in
-``note``): a clamped kick would not give the modelled response. The step's peak is one cycle, so
-it may use the whole limit; its motion may not: the check step is also at most what keeps the
-model's step response (its overshoot included) within the position and speed budgets of
-:mod:`jointctl.identification.safety` (a fraction of the room to the nearer limit or
-``--workspace``, of the velocity limit or ``--max-velocity``), said in ``note`` as well.
+**The move that will run.** A position loop is designed for the step that will run: ``step`` [m or rad,
+either way] from the reference the loop holds (``--step``; else the scenario's own step of that controller,
+else :data:`DEFAULT_STEP`), along ``ramp_s`` [s] when given, on the loop as it runs there
+(:class:`~jointctl.identification.step_loop.JointLoop`: the controller's law, whose derivative on the error
+asks the kick ``d·step/period`` on the first cycle, clamped at the effort limit; the effort clamp; the gravity
+load over the move; an integral, the gravity feed-forward; on the simulated robot its own integration). The
+spec becomes the step's overshoot (ζ's, or ``--overshoot-pct``) and settling time (``--settling-s``, or the
+ideal loop's); when the linear design does not meet them at that step the gains are searched on that loop
+(:mod:`jointctl.identification.step_design`). A step whose motion would leave the joint's range (less the
+guard's band) or ``--workspace``, move faster than the velocity limit or ``--max-velocity``, or ask more than
+``--max-effort``, is refused before anything moves. A velocity loop keeps the linear design: a step of
+``step`` [m/s or rad/s] asking more than the effort limit is refused, naming the bandwidth it allows.
 
-**Check.** Before they are offered, the gains are simulated on the sampled model and on the robot
-itself (the scenario with the new gains: a step of ``check_step`` from rest, and a stepped-sine sweep
-around the bandwidth, each sine at most ``check_step`` and inside the sweep's safe amplitude), and
-both figures are reported, with the share of the check's cycles at the actuator's effort or velocity
-limit (``robot.saturation``); above the threshold the result carries a warning (``warnings``), and a
-crossing of the user's limits stops the check and brings the joint back (SafetyStop). The gains are
-written as the robot's controller YAML (the chapter's format), the tuned controller's ``pid``
-replaced, everything else as loaded.
+**What binds.** When the check's step misses the spec (overshoot by 3 points, settling by 15 %, the rest
+beyond the 2 % band), ``binds`` names why (gravity, effort, the clamped kick, ``--max-effort``, the plant's
+damping) and each remedy that answers it (``--remedy``: integral, feedforward, measurement, ramp,
+lower-bandwidth) is designed and its step run on the simulated robot (``alternatives``, and a warning each);
+the user picks with ``--remedy``, and the controller file is written with it.
+
+**Check.** Before they are offered, the gains run on the robot itself (the scenario with the new gains, from
+where the loop rests: exactly the step designed for, and a stepped-sine sweep around the bandwidth, each sine
+at most the step and inside the sweep's safe amplitude): the figures it prints as the robot's (``robot.step_*``)
+are measured at the user's step; the model's (``model.*``) are the model's. The share of the check's cycles at
+the actuator's effort or velocity limit is reported (``robot.saturation``); above the threshold the result
+carries a warning (``warnings``), and a crossing of the user's limits stops the check and brings the joint back
+(SafetyStop). The gains are written as the robot's controller YAML (the chapter's format), the tuned
+controller's ``pid`` replaced (and its ``derivative`` and ``feedforward`` where a remedy changed them),
+everything else as loaded.
 """
 
 from __future__ import annotations
