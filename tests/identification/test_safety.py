@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from jointctl.errors import JointCtlError
+from jointctl.hardware.interface import EFFORT
 from jointctl.identification.frequency_response import bode, measure, measure_in_session
 from jointctl.identification.identify import identify_on_robot
 from jointctl.identification.plan import plan_bode
@@ -32,6 +33,7 @@ CONTROLLER = "joint1_position_controller"
 SAMPLED = 0.03  # the 1 kHz hold moves |T| and the effort by less than 2 % from the continuous loop's
 WEIGHT = MASS_KG * G
 DROOP = WEIGHT / KP
+ARM_MODEL_ERROR = 1.15  # the arm's joint 5 moves up to 15 % faster than its model (the coupling of the other joints)
 
 
 def continuous(frequency_hz: float, damping: float = DAMPING) -> tuple[float, float]:
@@ -120,13 +122,22 @@ def test_the_arm_swept_with_its_own_limits_stays_inside_them() -> None:
     """The arm's joint 5 (100 N·m, 0.5 rad/s): at the old amplitude (a third of the 3 rad of room, 1 rad) its
     sweep sat at a limit in 64 to 100 % of the cycles. Planned on its model (the other joints held: the
     coupling makes it lighter at high frequencies than its M55, so it moves up to 15 % faster than
-    predicted), its peaks stay within the limits, the 2x margin taking the model's error."""
-    points, context = measure(scenario_for_robot("arm7dof", "position"), "joint5_position_controller",
-                              [0.5, 2.0, 8.0, 20.0])
-    assert max(context["saturation"]["peak_effort"]) <= 100.0
-    assert max(context["saturation"]["peak_velocity"]) <= 0.5
+    predicted), its peaks stay within the limits, the 2x margin taking the model's error. The effort is the
+    controller's command (MuJoCo clamps the force it applies at the limit, so the measured one could not
+    exceed it): no more than the plan predicts, less the model's 15 %, inside half the limit (the budget)."""
+    session = Session(scenario_for_robot("arm7dof", "position"))
+    commands, index = session.hardware.command_buffer(EFFORT), session.hardware.joint_index("joint5")
+    commanded: list[float] = []
+    session.loop.add_observer(lambda _t: commanded.append(commands[index]))
+    points, context = measure_in_session(session, "joint5_position_controller", [0.5, 2.0, 8.0, 20.0])
+    plan = context["plan"]
+    assert [row["binds"] for row in plan["points"]] == ["velocity"] * 4
+    planned = max(row["peak_effort"] for row in plan["points"])
+    peak = float(np.abs(commanded).max())
+    assert peak <= ARM_MODEL_ERROR * planned <= ARM_MODEL_ERROR * plan["budgets"]["effort"]
+    assert plan["budgets"]["effort"] == 0.5 * 100.0
+    assert max(context["saturation"]["peak_velocity"]) <= ARM_MODEL_ERROR * plan["budgets"]["velocity"] < 0.5
     assert all(p.saturation == 0.0 for p in points)
-    assert [row["binds"] for row in context["plan"]["points"]] == ["velocity"] * 4
 
 
 def test_a_loop_that_resonates_more_than_its_plant_says_saturates_and_bode_marks_the_point(tmp_path) -> None:
