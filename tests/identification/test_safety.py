@@ -258,3 +258,78 @@ def test_the_room_is_read_where_a_soft_loop_really_rests(tmp_path) -> None:
     assert envelope.resting_at == pytest.approx(rest, abs=1e-4) and envelope.droop == pytest.approx(rest, abs=1e-4)
     assert envelope.budgets()["position"] == pytest.approx(0.3 * (2.5 - rest), abs=1e-4)
     envelope.check()  # room to move: no refusal
+
+
+def test_crossing_max_effort_stops_identify_and_brings_the_joint_back(tmp_path) -> None:
+    """Planned on ζ 0.5 with --max-effort 40 N (the sine's effort and the 9.9 N weight within half of it), the
+    robot's ζ 0.05 at 3.17 Hz swings about ten times more than planned: its effort crosses 40 N (the URDF's
+    1000 N and the range far off), the guard stops the chirp and the piston settles back where it rested."""
+    scenario = one_dof_variant(tmp_path, damping=2.0)
+    with pytest.raises(SafetyStop) as info:
+        identify_on_robot(scenario, "joint1", plant=plant(damping=20.0), f_start_hz=3.17, f_end_hz=3.17,
+                          safety=Safety(limits=UserLimits(max_effort=40.0)))
+    stop = info.value
+    assert stop.field == "--max-effort" and abs(stop.value) > 40.0
+    assert "the joint's effort reached" in str(stop) and "beyond --max-effort 40" in str(stop)
+    assert "at rest" in str(stop) and "still moving" not in str(stop)
+
+
+class _Joint:
+    """One joint's measured state, as a hardware's arrays (index 0)."""
+
+    def __init__(self) -> None:
+        self.position, self.velocity, self.effort = [0.0], [0.0], [0.0]
+
+
+def test_a_joint_that_never_settles_ends_the_way_back_after_the_longest_it_may_take() -> None:
+    """A joint that keeps swinging (0.2·sin(π t) rad, whatever its reference) crosses the ±0.1 rad workspace
+    at t = 1/6 s; it never comes to rest, so the guard gives up RETURN_MAX_S (10 s) of loop time after the
+    stop and says the joint is still moving."""
+    from jointctl.identification.safety import RETURN_MAX_S, Envelope, Guard
+
+    joint = _Joint()
+    envelope = Envelope("joint", 0.0, -3.0, 3.0, 2.0, math.inf, Safety(limits=UserLimits(workspace=(-0.1, 0.1))))
+    guard = Guard(joint, 0, envelope, loop="position", start=0.0)
+    dt, k = 0.001, 0
+    while not guard.finished and k * dt < 3 * RETURN_MAX_S:
+        t = k * dt
+        guard.reference(t, 0.0)
+        joint.position[0], joint.velocity[0] = 0.2 * math.sin(math.pi * t), 0.2 * math.pi * math.cos(math.pi * t)
+        guard.observe(t)
+        k += 1
+    assert guard.trip["field"] == "--workspace" and guard.trip["time_s"] == pytest.approx(1 / 6, abs=dt)
+    assert guard.finished and not guard.at_rest
+    assert (k - 1) * dt - guard.trip["time_s"] == pytest.approx(RETURN_MAX_S, abs=dt / 2)
+    assert f"still moving {RETURN_MAX_S:g} s after the stop" in str(guard.error())
+
+
+def _envelope(rest: float, **kwargs):
+    from jointctl.identification.safety import Envelope
+
+    kwargs.setdefault("safety", Safety())
+    return Envelope("joint1", rest, -1.0, 0.0, 1.0, 1000.0, unit="m", **kwargs)
+
+
+@pytest.mark.parametrize(("envelope", "field", "words"), [
+    (lambda: _envelope(-0.5, safety=Safety(limits=UserLimits(workspace=(-0.3, -0.1)))), "--workspace",
+     "outside the workspace"),
+    (lambda: _envelope(0.2), "start", "rests outside its range [-1, 0]"),
+    (lambda: _envelope(0.0), "start", "rests at a limit: no room"),
+    (lambda: _envelope(-0.3, droop=0.1, resting_at=-0.2, safety=Safety(limits=UserLimits(workspace=(-0.9, -0.2)))),
+     "start", "rests at -0.2 m, 0.1 from its reference -0.3"),
+    (lambda: _envelope(-0.5, bias=500.0), "effort", "takes all of 0.5 of the effort limit 1000"),
+    (lambda: _envelope(-0.5, bias=10.0, safety=Safety(limits=UserLimits(max_effort=20.0))), "--max-effort",
+     "takes all of 0.5 of the effort limit 20"),
+])
+def test_an_envelope_that_leaves_nothing_to_excite_is_refused_naming_why(envelope, field, words) -> None:
+    """Each refusal of Envelope.check on its own case: the rest outside the workspace, outside the range, at an
+    end of the window (0.3 of no room is none; a droop onto the workspace's end too), and a load at rest that
+    takes the whole effort budget (0.5 of the URDF's 1000 N, or of a lower --max-effort)."""
+    with pytest.raises(IdentificationError) as info:
+        envelope().check()
+    assert info.value.field == field and words in str(info.value)
+
+
+def test_an_envelope_with_room_and_effort_left_is_not_refused() -> None:
+    _envelope(-0.5, bias=499.0).check()
+    _envelope(-0.5, bias=9.9, safety=Safety(limits=UserLimits(max_effort=20.0, workspace=(-0.6, -0.4)))).check()
