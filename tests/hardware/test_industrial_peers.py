@@ -45,11 +45,11 @@ def smooth_goal(delta: float, duration_s: float, points: int = 3) -> JointTrajec
 
 @contextlib.contextmanager
 def arm_against(kind: str, *, failure_reply_delay_s: float = 0.0, stale_status_after_failure: bool = False,
-                **options):
+                error_status: bool = True, **options):
     """(double, session, executor): the arm's industrial session on IndustrialHardware connected to a
     controller double of ``kind``; ``options`` for the hardware (``message``...)."""
     double = ControllerDouble(kind, PRE_POSE, VMAX, failure_reply_delay_s=failure_reply_delay_s,
-                              stale_status_after_failure=stale_status_after_failure)
+                              stale_status_after_failure=stale_status_after_failure, error_status=error_status)
     hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
                                   state_port=double.state_port, max_velocities=VMAX, **options)
     try:
@@ -172,3 +172,40 @@ def test_a_streamed_command_as_full_points_carries_times_from_the_motions_start(
         assert [m.sequence for m in sent] == [0, 1, 2]  # one every 20 ms, from a new trajectory
         assert [m.time for m in sent] == pytest.approx([0.02, 0.04, 0.06], rel=1e-6)
         assert [m.positions[0] for m in sent] == pytest.approx([1e-4, 21e-4, 41e-4], abs=1e-7)
+
+
+def test_a_failure_reply_without_an_error_status_aborts_the_goal_naming_the_point() -> None:
+    # A controller that answers FAILURE but never sets STATUS in_error: the refusal is the reply alone,
+    # reported once the error code has had its chance to arrive, without one.
+    with arm_against("full", message="pt", error_status=False) as (double, session, executor):
+        handle = executor.submit(smooth_goal(0.1, 3.0), now_s=session.loop.time_s)
+        run_until_done(session, handle, 3.0 + MARGIN_S)
+        assert handle.status is GoalStatus.ABORTED
+        assert "the controller refused point 0 of the trajectory (FAILURE; no error code reported)" in \
+            handle.result.error_string
+        assert [m.sequence for _, m in double.points] == [0]  # the rest of the goal was not sent
+        assert double.positions == pytest.approx(list(PRE_POSE))  # nothing moved
+
+
+def test_a_download_refused_by_the_status_alone_aborts_the_goal_with_the_error_code() -> None:
+    # Download: every point is a topic, nothing is answered; the "full" controller refuses the
+    # JOINT_TRAJ_PT points by its STATUS only (in_error, error_code 22). The goal aborts on that STATUS.
+    with arm_against("full", message="pt", motion="download") as (double, session, executor):
+        handle = executor.submit(smooth_goal(0.1, 3.0), now_s=session.loop.time_s)
+        run_until_done(session, handle, 3.0 + MARGIN_S)
+        assert handle.status is GoalStatus.ABORTED
+        assert "the controller refused a point (STATUS error_code 22)" in handle.result.error_string
+        assert [m.sequence for _, m in double.points] == [-1, 1, -3]  # the whole goal, as topics
+        assert double.positions == pytest.approx(list(PRE_POSE))  # nothing moved
+
+
+def test_a_download_runs_the_goal_after_its_last_point() -> None:
+    # The success path of the same handshake, against the "duration" double: the positive control of the
+    # test above (the download double executes a goal it accepts).
+    with arm_against("duration", motion="download") as (double, session, executor):
+        goal = smooth_goal(0.08, 1.2)
+        handle = executor.submit(goal, now_s=session.loop.time_s)
+        run_until_done(session, handle, 1.2 + MARGIN_S)
+        assert handle.status is GoalStatus.SUCCEEDED, handle.result
+        assert [m.sequence for m in double.trajectory_points()] == [-1, 1, -3]
+        assert np.abs(np.array(double.positions) - np.array(goal.points[-1].positions)).max() < GOAL_TOLERANCE
