@@ -209,3 +209,69 @@ def test_a_download_runs_the_goal_after_its_last_point() -> None:
         assert handle.status is GoalStatus.SUCCEEDED, handle.result
         assert [m.sequence for m in double.trajectory_points()] == [-1, 1, -3]
         assert np.abs(np.array(double.positions) - np.array(goal.points[-1].positions)).max() < GOAL_TOLERANCE
+
+
+def test_the_velocity_is_the_difference_of_the_last_two_reports_over_their_arrival_times() -> None:
+    # The test decides when each report leaves: a report sent after t_sent arrives after it, and was read
+    # by t_seen, so the hardware's interval between two reports lies within [t_sent2 - t_seen1,
+    # t_seen2 - t_sent1], and its velocity Δq / interval within the bounds that follow, whatever the load.
+    double = ControllerDouble("duration", PRE_POSE, VMAX, state_period_s=None)
+    hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
+                                  state_port=double.state_port, max_velocities=VMAX, stale_after_s=1e9)
+    try:
+        hardware.connect()  # the report sent on connect
+        hardware.read()
+        assert hardware.velocity == [0.0] * len(JOINTS)  # one report: nothing to difference
+
+        def send(positions) -> tuple[float, float]:
+            with double.lock:
+                double.positions = list(positions)
+            reports = hardware.state_reports
+            sent = time.monotonic()
+            double.report()
+            while hardware.state_reports == reports:
+                time.sleep(0.001)
+            return sent, time.monotonic()
+
+        sent1, seen1 = send(PRE_POSE)
+        hardware.read()
+        assert hardware.velocity == [0.0] * len(JOINTS)  # the same positions again: at rest
+        moved = [q + d for q, d in zip(PRE_POSE, (0.01, -0.02, 0.0, 0.005, 0.03, -0.001, 0.0))]
+        time.sleep(0.05)  # an interval of its own between the two reports (the bounds hold without it)
+        sent2, seen2 = send(moved)
+        hardware.read()
+        dq = np.float32(moved) - np.float32(PRE_POSE)  # float32 on the wire
+        shortest, longest = sent2 - seen1, seen2 - sent1
+        assert 0 < shortest <= longest
+        for v, d in zip(hardware.velocity, dq):
+            low, high = sorted((d / longest, d / shortest))
+            assert low * (1 - 1e-6) - 1e-12 <= v <= high * (1 + 1e-6) + 1e-12, (v, d, shortest, longest)
+        # one interval for all joints: the velocities are in the ratio of the steps
+        assert np.array(hardware.velocity) * float(dq[0]) == pytest.approx(dq * hardware.velocity[0], rel=1e-5)
+    finally:
+        hardware.close()
+        double.close()
+
+
+def test_resampled_points_are_the_goal_every_stream_period() -> None:
+    # points="resampled" at 50 Hz: a 1.2 s goal goes as 60 points 20 ms apart, each the goal's smoothstep at its
+    # time (a cubic: the executor's cubic interpolation between the goal's points with their velocities is the
+    # smoothstep itself), with ROS-I's speed fraction of the goal's velocity then.
+    delta, duration_s, period_s = 0.08, 1.2, 0.02
+    with arm_against("duration", points="resampled", stream_rate_hz=1 / period_s) as (double, session, executor):
+        goal = smooth_goal(delta, duration_s)
+        handle = executor.submit(goal, now_s=session.loop.time_s)
+        run_until_done(session, handle, duration_s + MARGIN_S)
+        assert handle.status is GoalStatus.SUCCEEDED, handle.result
+        sent = double.trajectory_points()
+    count = round(duration_s / period_s)
+    assert [m.sequence for m in sent] == list(range(count))
+    assert [m.duration for m in sent] == pytest.approx([period_s] * count, abs=1e-6)
+    times = period_s * np.arange(1, count + 1)
+    tau = times / duration_s
+    s, ds = 3 * tau**2 - 2 * tau**3, 6 * tau * (1 - tau) / duration_s
+    # The goal is handed over at most one 1 ms loop cycle after its start: the samples may lead by that much.
+    slack = delta * 1.5 / duration_s * 0.001 + 1e-6
+    for message, si, dsi in zip(sent, s, ds):
+        assert message.positions[:7] == pytest.approx([q + delta * si for q in PRE_POSE], abs=slack)
+        assert message.velocity == pytest.approx(ros_i_fraction([delta * dsi] * 7, VMAX), abs=0.01)
