@@ -333,6 +333,19 @@ def test_play_exits_1_when_the_goal_does_not_succeed(tmp_path, capsys, reach, st
         assert "goal succeeded in 1.00 s" in printed
     assert angles(FINAL, printed) == pytest.approx([reach * q for q in PRE_POSE])
 
+
+@pytest.mark.parametrize("reach, status", [(1.0, 0), (0.5, 1)])
+def test_jointctl_play_exits_with_plays_status(tmp_path, monkeypatch, capsys, reach, status):
+    # The command line's exit status is play's: 1 when the goal did not succeed (the sender it opens replaced).
+    import jointctl.cli.clients as cli_clients
+    from jointctl.cli import main
+
+    path = tmp_path / "path.csv"
+    path.write_text("0, 1, 0, -2, 0, 1, 0\n")
+    monkeypatch.setattr(cli_clients, "_sender", lambda _args: FakeSender(reach=reach))
+    assert main(["play", str(path)]) == status
+    assert ("goal succeeded" if status == 0 else "goal aborted") in capsys.readouterr().out
+
 def test_shipped_paths_are_within_limits_and_reverse_each_other():
     with InProcessGoalSender.open() as sender:
         specs = sender.joint_specs
