@@ -28,10 +28,12 @@ from jointctl.clients.arm import (
     move_joint,
     parse_angle,
     parse_joint_number,
+    play_command,
     play_path_file,
     read_path_file,
     run_prompter,
 )
+from jointctl.trajectory.errors import InvalidTrajectory, TrajectoryErrorCode
 from jointctl.trajectory.messages import JointSpec
 
 JOINTCTL = [sys.executable, "-m", "jointctl.cli"]
@@ -214,14 +216,21 @@ def test_angles_within_the_joint_range():
 
 
 class FakeSender:
-    """A GoalSender without a robot: it records what the client plans and sends."""
+    """A GoalSender without a robot: it records what the client plans and sends. By default each goal
+    succeeds at its last point. ``refuse``: joints whose goals are refused before anything moves (the
+    executor's InvalidTrajectory, or a REJECTED over ROS). ``reach``: the fraction of each move from
+    where the joints are to the goal's last point that is travelled, after which the goal ends aborted
+    (a blocked joint, a fault) with ``error``."""
 
     joint_names = tuple(f"joint{k}" for k in range(7))
     joint_specs = tuple(JointSpec(f"joint{k}", -3.0, 2.7, 0.3) for k in range(7))
+    trace_path = None
 
-    def __init__(self) -> None:
+    def __init__(self, *, refuse=(), reach: float = 1.0, error: str = "blocked") -> None:
         self.q = [0.0] * 7
         self.plans = []
+        self.sent = []
+        self.refuse, self.reach, self.error = set(refuse), reach, error
 
     def current_positions(self):
         return tuple(self.q)
@@ -232,9 +241,22 @@ class FakeSender:
 
     def send(self, trajectory):
         _, names, path = trajectory
+        refused = [name for name in names if name in self.refuse]
+        if refused:
+            raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL, "the joint is locked", joint=refused[0])
+        self.sent.append(trajectory)
         for name, q in zip(names, path[-1]):
-            self.q[self.joint_names.index(name)] = q
-        return GoalOutcome("succeeded", "", 1.0, tuple(self.q))
+            k = self.joint_names.index(name)
+            self.q[k] += self.reach * (q - self.q[k])
+        if self.reach == 1.0:
+            return GoalOutcome("succeeded", "", 1.0, tuple(self.q))
+        return GoalOutcome("aborted", self.error, 1.0, tuple(self.q))
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        pass
 
 
 def test_prompter_logic_through_the_goal_sender_protocol():
@@ -256,7 +278,73 @@ def test_prompter_logic_through_the_goal_sender_protocol():
     assert angles(REACHED, out.getvalue()) == pytest.approx([0, 1, -2.5, -2, 0, 1.25, 0])
 
 
+def test_prompter_says_refused_moves_nothing_and_asks_again():
+    # joint5's goals are refused (nothing moves): one "refused:" line naming the reason, and the next
+    # question; joint2 then moves as asked.
+    sender = FakeSender(refuse={"joint5"})
+    answers = iter(["5", "1.25", "2", "-2.5", "-1"])
+    out = io.StringIO()
+    assert run_prompter(sender, ask=lambda _prompt: next(answers), out=out, pre_pose=None) == 0
+    lines = out.getvalue().splitlines()
+    refused = [line for line in lines if line.startswith("refused: ")]
+    reason = InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL, "the joint is locked", joint="joint5")
+    assert refused == [f"refused: {reason}"], lines
+    assert [names for _, names, _ in sender.sent] == [("joint2",)]
+    assert sender.q == [0.0, 0.0, -2.5, 0.0, 0.0, 0.0, 0.0]
+    assert angles(REACHED, out.getvalue()) == pytest.approx(sender.q)
+
+
+@pytest.mark.parametrize("start, angle, reach, word", [(0.0, 1.25, 0.8, "short of"), (0.0, -2.5, 0.9, "short of"),
+                                                        (0.0, 1.25, 1.2, "past"), (0.5, -1.0, 1.1, "past")])
+def test_prompter_notes_a_joint_that_stops_short_of_or_past_its_command(start, angle, reach, word):
+    # The joint ends at start + reach (angle - start): |miss| = |1 - reach| |angle - start| rad from the command,
+    # before it for reach < 1, beyond it for reach > 1, whichever way it moved.
+    sender = FakeSender(reach=reach)
+    sender.q[5] = start
+    answers = iter(["5", str(angle), "-1"])
+    out = io.StringIO()
+    assert run_prompter(sender, ask=lambda _prompt: next(answers), out=out, pre_pose=None) == 0
+    miss = abs(1.0 - reach) * abs(angle - start)
+    assert miss > 0.01  # beyond the prompter's REACH_TOLERANCE: the note is due
+    assert f"joint 5 to {angle:g}: aborted in 1.00 s (blocked)" in out.getvalue()
+    assert f"note: joint5 stopped {miss:.3f} rad {word} {angle:g} (blocked or still settling?)" in out.getvalue()
+
+
+def test_prompter_adds_no_note_within_its_tolerance():
+    sender = FakeSender(reach=0.995)  # 0.00625 rad short of 1.25: within REACH_TOLERANCE (0.01 rad)
+    answers = iter(["5", "1.25", "-1"])
+    out = io.StringIO()
+    run_prompter(sender, ask=lambda _prompt: next(answers), out=out, pre_pose=None)
+    assert "note:" not in out.getvalue()
+
+
 # -- the playfile client ----------------------------------------------------------------------
+
+@pytest.mark.parametrize("reach, status", [(1.0, 0), (0.5, 1)])
+def test_play_exits_1_when_the_goal_does_not_succeed(tmp_path, capsys, reach, status):
+    path = tmp_path / "path.csv"
+    path.write_text("0, 1, 0, -2, 0, 1, 0\n")
+    sender = FakeSender(reach=reach, error="the controller refused point 0")
+    assert play_command(sender, path) == status
+    printed = capsys.readouterr().out
+    if status:
+        assert "goal aborted in 1.00 s (the controller refused point 0)" in printed
+    else:
+        assert "goal succeeded in 1.00 s" in printed
+    assert angles(FINAL, printed) == pytest.approx([reach * q for q in PRE_POSE])
+
+
+@pytest.mark.parametrize("reach, status", [(1.0, 0), (0.5, 1)])
+def test_jointctl_play_exits_with_plays_status(tmp_path, monkeypatch, capsys, reach, status):
+    # The command line's exit status is play's: 1 when the goal did not succeed (the sender it opens replaced).
+    import jointctl.cli.clients as cli_clients
+    from jointctl.cli import main
+
+    path = tmp_path / "path.csv"
+    path.write_text("0, 1, 0, -2, 0, 1, 0\n")
+    monkeypatch.setattr(cli_clients, "_sender", lambda _args: FakeSender(reach=reach))
+    assert main(["play", str(path)]) == status
+    assert ("goal succeeded" if status == 0 else "goal aborted") in capsys.readouterr().out
 
 def test_shipped_paths_are_within_limits_and_reverse_each_other():
     with InProcessGoalSender.open() as sender:

@@ -17,17 +17,28 @@ All of them: the STATE port pushes JOINT_POSITION and STATUS (TOPIC) every 10 ms
 trajectory), queues up to ``capacity`` and holds the reply while the queue is full (the flow
 control); STOP (-4) clears the queue, the joints stop where they are, and is answered. Every point
 received is kept in ``points`` (the decoded message) with the double's clock when it arrived.
+Download (ROS-I's ``motion_download_interface``, facts §7): points sent as TOPIC from sequence -1
+(a new trajectory) to -3 are collected, checked as above, and executed only after the -3; a refused
+one gets no reply (a topic has none): the refusal is only the STATUS error.
+
+Options: ``error_status=False``, a controller that answers FAILURE without ever reporting the error in
+its STATUS (``in_error`` 0, ``error_code`` 0; the reference relays STATUS as the controller sends it);
+``state_period_s=None``, a STATE port that sends one report on connect and then one per
+:meth:`report` call (the test decides when each report leaves).
 """
 
 from __future__ import annotations
 
 import math
+import queue
 import socket
 import threading
 import time
 from collections import deque
 
 from jointctl.wire.simple_message import (
+    END_TRAJECTORY,
+    START_TRAJECTORY_DOWNLOAD,
     STOP_TRAJECTORY,
     CommType,
     JointPosition,
@@ -53,9 +64,16 @@ class ControllerDouble:
 
     def __init__(self, kind: str, positions, max_velocities, *, capacity: int = 8,
                  period_s: float = 0.01, failure_reply_delay_s: float = 0.0,
-                 stale_status_after_failure: bool = False) -> None:
+                 stale_status_after_failure: bool = False, error_status: bool = True,
+                 state_period_s: float | None = 0.01) -> None:
         assert kind in KINDS
         self.kind, self.capacity, self.period_s = kind, capacity, period_s
+        #: Whether a refusal sets STATUS ``in_error`` and ``error_code`` (False: FAILURE replies only).
+        self.error_status = error_status
+        #: The STATE port's period [s]; None: one report on connect, then one per :meth:`report`.
+        self.state_period_s = state_period_s
+        self._reports: queue.SimpleQueue = queue.SimpleQueue()
+        self._download: list | None = None  # the download trajectory's points being collected
         #: How long a FAILURE reply waits after its STATUS error is reported [s] (a controller that says
         #: the error on the state port before it answers the request).
         self.failure_reply_delay_s = failure_reply_delay_s
@@ -185,9 +203,19 @@ class ControllerDouble:
                         error = 0 if self._masked else self.error_code
                         if self._masked and self._reply_out:
                             self._masked = self._reply_out = False
+                    if not self.error_status:
+                        error = 0
                     status = RobotStatus(1, 0, error, 1 if error else 0, int(moving), 2, 1)
                     conn.sendall(encode(JointPosition(0, positions)) + encode(status))
-                    self.closing.wait(self.period_s)
+                    if self.state_period_s is not None:
+                        self.closing.wait(self.state_period_s)
+                        continue
+                    while not self.closing.is_set():
+                        try:
+                            self._reports.get(timeout=0.1)
+                            break
+                        except queue.Empty:
+                            continue
             except OSError:
                 continue
 
@@ -200,9 +228,12 @@ class ControllerDouble:
                     if not data:
                         break
                     for packet in reader.feed(data):
-                        assert packet.comm_type == CommType.SERVICE_REQUEST
                         message = decode(packet)
                         self.points.append((time.monotonic(), message))
+                        if packet.comm_type == CommType.TOPIC:
+                            self._on_download(message)
+                            continue
+                        assert packet.comm_type == CommType.SERVICE_REQUEST
                         code = self._on_point(message)
                         if code == ReplyCode.FAILURE and self.failure_reply_delay_s:
                             self.closing.wait(self.failure_reply_delay_s)
@@ -215,10 +246,45 @@ class ControllerDouble:
                 self._queue.clear()
                 self._segment = None
 
+    def _on_download(self, message) -> None:
+        """A point of a download (TOPIC): -1 begins a trajectory, -3 ends it and starts its execution."""
+        with self.lock:
+            self._advance()
+            if message.sequence == START_TRAJECTORY_DOWNLOAD:
+                self._queue.clear()
+                self._segment = None
+                self._last_time = 0.0
+                self._accepting = True
+                self.error_code = 0
+                self._download = []
+            if self._download is None or not self._accepting:
+                return
+            if (self.kind == "full") != isinstance(message, JointTrajPtFull):
+                self.error_code, self._accepting, self._download = ERROR_NOT_FULL, False, None
+                return
+            target = list(message.positions[: len(self.positions)])
+            start = self._download[-1][0] if self._download else self.positions
+            if self.kind == "speed" and not 0.0 < message.velocity <= 1.0:
+                self.error_code, self._accepting, self._download = ERROR_BAD_SPEED, False, None
+                return
+            if self.kind == "speed":
+                length = max((abs(b - a) / (message.velocity * v) for a, b, v in
+                              zip(start, target, self.max_velocities)), default=0.0)
+            else:
+                length = self._length(target, message)
+            self._download.append((target, length))
+            if message.sequence == END_TRAJECTORY:
+                self._queue.extend(self._download)
+                self._download = None
+
+    def report(self) -> None:
+        """With ``state_period_s=None``: send one JOINT_POSITION and STATUS now (from the state thread)."""
+        self._reports.put(True)
+
     def trajectory_points(self) -> list:
-        """The points received since the last sequence 0, STOPs left out."""
+        """The points received since the last sequence 0 (or -1, a download's first), STOPs left out."""
         messages = [m for _, m in self.points if m.sequence != STOP_TRAJECTORY]
-        starts = [k for k, m in enumerate(messages) if m.sequence == 0]
+        starts = [k for k, m in enumerate(messages) if m.sequence in (0, START_TRAJECTORY_DOWNLOAD)]
         return messages[starts[-1]:] if starts else []
 
     def close(self) -> None:

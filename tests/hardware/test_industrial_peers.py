@@ -45,11 +45,11 @@ def smooth_goal(delta: float, duration_s: float, points: int = 3) -> JointTrajec
 
 @contextlib.contextmanager
 def arm_against(kind: str, *, failure_reply_delay_s: float = 0.0, stale_status_after_failure: bool = False,
-                **options):
+                error_status: bool = True, **options):
     """(double, session, executor): the arm's industrial session on IndustrialHardware connected to a
     controller double of ``kind``; ``options`` for the hardware (``message``...)."""
     double = ControllerDouble(kind, PRE_POSE, VMAX, failure_reply_delay_s=failure_reply_delay_s,
-                              stale_status_after_failure=stale_status_after_failure)
+                              stale_status_after_failure=stale_status_after_failure, error_status=error_status)
     hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
                                   state_port=double.state_port, max_velocities=VMAX, **options)
     try:
@@ -172,3 +172,106 @@ def test_a_streamed_command_as_full_points_carries_times_from_the_motions_start(
         assert [m.sequence for m in sent] == [0, 1, 2]  # one every 20 ms, from a new trajectory
         assert [m.time for m in sent] == pytest.approx([0.02, 0.04, 0.06], rel=1e-6)
         assert [m.positions[0] for m in sent] == pytest.approx([1e-4, 21e-4, 41e-4], abs=1e-7)
+
+
+def test_a_failure_reply_without_an_error_status_aborts_the_goal_naming_the_point() -> None:
+    # A controller that answers FAILURE but never sets STATUS in_error: the refusal is the reply alone,
+    # reported once the error code has had its chance to arrive, without one.
+    with arm_against("full", message="pt", error_status=False) as (double, session, executor):
+        handle = executor.submit(smooth_goal(0.1, 3.0), now_s=session.loop.time_s)
+        run_until_done(session, handle, 3.0 + MARGIN_S)
+        assert handle.status is GoalStatus.ABORTED
+        assert "the controller refused point 0 of the trajectory (FAILURE; no error code reported)" in \
+            handle.result.error_string
+        assert [m.sequence for _, m in double.points] == [0]  # the rest of the goal was not sent
+        assert double.positions == pytest.approx(list(PRE_POSE))  # nothing moved
+
+
+def test_a_download_refused_by_the_status_alone_aborts_the_goal_with_the_error_code() -> None:
+    # Download: every point is a topic, nothing is answered; the "full" controller refuses the
+    # JOINT_TRAJ_PT points by its STATUS only (in_error, error_code 22). The goal aborts on that STATUS.
+    with arm_against("full", message="pt", motion="download") as (double, session, executor):
+        handle = executor.submit(smooth_goal(0.1, 3.0), now_s=session.loop.time_s)
+        run_until_done(session, handle, 3.0 + MARGIN_S)
+        assert handle.status is GoalStatus.ABORTED
+        assert "the controller refused a point (STATUS error_code 22)" in handle.result.error_string
+        assert [m.sequence for _, m in double.points] == [-1, 1, -3]  # the whole goal, as topics
+        assert double.positions == pytest.approx(list(PRE_POSE))  # nothing moved
+
+
+def test_a_download_runs_the_goal_after_its_last_point() -> None:
+    # The success path of the same handshake, against the "duration" double: the positive control of the
+    # test above (the download double executes a goal it accepts).
+    with arm_against("duration", motion="download") as (double, session, executor):
+        goal = smooth_goal(0.08, 1.2)
+        handle = executor.submit(goal, now_s=session.loop.time_s)
+        run_until_done(session, handle, 1.2 + MARGIN_S)
+        assert handle.status is GoalStatus.SUCCEEDED, handle.result
+        assert [m.sequence for m in double.trajectory_points()] == [-1, 1, -3]
+        assert np.abs(np.array(double.positions) - np.array(goal.points[-1].positions)).max() < GOAL_TOLERANCE
+
+
+def test_the_velocity_is_the_difference_of_the_last_two_reports_over_their_arrival_times() -> None:
+    # The test decides when each report leaves: a report sent after t_sent arrives after it, and was read
+    # by t_seen, so the hardware's interval between two reports lies within [t_sent2 - t_seen1,
+    # t_seen2 - t_sent1], and its velocity Δq / interval within the bounds that follow, whatever the load.
+    double = ControllerDouble("duration", PRE_POSE, VMAX, state_period_s=None)
+    hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
+                                  state_port=double.state_port, max_velocities=VMAX, stale_after_s=1e9)
+    try:
+        hardware.connect()  # the report sent on connect
+        hardware.read()
+        assert hardware.velocity == [0.0] * len(JOINTS)  # one report: nothing to difference
+
+        def send(positions) -> tuple[float, float]:
+            with double.lock:
+                double.positions = list(positions)
+            reports = hardware.state_reports
+            sent = time.monotonic()
+            double.report()
+            while hardware.state_reports == reports:
+                time.sleep(0.001)
+            return sent, time.monotonic()
+
+        sent1, seen1 = send(PRE_POSE)
+        hardware.read()
+        assert hardware.velocity == [0.0] * len(JOINTS)  # the same positions again: at rest
+        moved = [q + d for q, d in zip(PRE_POSE, (0.01, -0.02, 0.0, 0.005, 0.03, -0.001, 0.0))]
+        time.sleep(0.05)  # an interval of its own between the two reports (the bounds hold without it)
+        sent2, seen2 = send(moved)
+        hardware.read()
+        dq = np.float32(moved) - np.float32(PRE_POSE)  # float32 on the wire
+        shortest, longest = sent2 - seen1, seen2 - sent1
+        assert 0 < shortest <= longest
+        for v, d in zip(hardware.velocity, dq):
+            low, high = sorted((d / longest, d / shortest))
+            assert low * (1 - 1e-6) - 1e-12 <= v <= high * (1 + 1e-6) + 1e-12, (v, d, shortest, longest)
+        # one interval for all joints: the velocities are in the ratio of the steps
+        assert np.array(hardware.velocity) * float(dq[0]) == pytest.approx(dq * hardware.velocity[0], rel=1e-5)
+    finally:
+        hardware.close()
+        double.close()
+
+
+def test_resampled_points_are_the_goal_every_stream_period() -> None:
+    # points="resampled" at 50 Hz: a 1.2 s goal goes as 60 points 20 ms apart, each the goal's smoothstep at its
+    # time (a cubic: the executor's cubic interpolation between the goal's points with their velocities is the
+    # smoothstep itself), with ROS-I's speed fraction of the goal's velocity then.
+    delta, duration_s, period_s = 0.08, 1.2, 0.02
+    with arm_against("duration", points="resampled", stream_rate_hz=1 / period_s) as (double, session, executor):
+        goal = smooth_goal(delta, duration_s)
+        handle = executor.submit(goal, now_s=session.loop.time_s)
+        run_until_done(session, handle, duration_s + MARGIN_S)
+        assert handle.status is GoalStatus.SUCCEEDED, handle.result
+        sent = double.trajectory_points()
+    count = round(duration_s / period_s)
+    assert [m.sequence for m in sent] == list(range(count))
+    assert [m.duration for m in sent] == pytest.approx([period_s] * count, abs=1e-6)
+    times = period_s * np.arange(1, count + 1)
+    tau = times / duration_s
+    s, ds = 3 * tau**2 - 2 * tau**3, 6 * tau * (1 - tau) / duration_s
+    # The goal is handed over at most one 1 ms loop cycle after its start: the samples may lead by that much.
+    slack = delta * 1.5 / duration_s * 0.001 + 1e-6
+    for message, si, dsi in zip(sent, s, ds):
+        assert message.positions[:7] == pytest.approx([q + delta * si for q in PRE_POSE], abs=slack)
+        assert message.velocity == pytest.approx(ros_i_fraction([delta * dsi] * 7, VMAX), abs=0.01)
