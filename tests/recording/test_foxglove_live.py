@@ -179,7 +179,8 @@ def test_only_the_meshes_the_urdf_names_are_served(tmp_path, write_scenario):
 def test_the_objects_and_events_channels_follow_spawns_removals_and_failures(tmp_path, write_scenario):
     """A weight spawned at 0.2 s falls freely from 2.5 m, is removed at 0.5 s, and a controller fails at 0.6 s:
     the objects channel (read from an MCAP sink on the server's context) shows it at the free-fall height at
-    every scene tick from its spawn, deletes it once, then sends nothing; the events channel has the three events in order, stamped at their loop times."""
+    every scene tick from its spawn, deletes it once, then sends nothing;
+    the events channel has the three events in order, stamped at their loop times."""
     import foxglove
     from tests.recording.test_mcap_record import WEIGHT, read_mcap
 
