@@ -11,6 +11,7 @@ import threading
 import time
 from collections import deque
 
+import numpy as np
 import pytest
 
 from jointctl.hardware.industrial import HardwareUnreachable, IndustrialHardware
@@ -282,19 +283,25 @@ def test_a_motion_streams_points_at_the_stream_rate_from_sequence_zero(peer) -> 
     hw = connected(peer, stream_rate_hz=50.0, max_velocities=(2.0, 1.0))
     try:
         command = hw.command_buffer(POSITION)
-        for k in range(100):  # 100 ms of loop time, the command moving every cycle
-            command[:] = [0.1 + 0.001 * k, -0.2]
+        for k in range(100):  # 100 ms of loop time, the command moving every cycle, 1 mm from the robot's 0.1
+            command[:] = [0.1 + 0.001 * (k + 1), -0.2]
             cycle(hw)
         wait_for(lambda: len(peer.points) == 5, "five points")
         assert [p.sequence for p in peer.points] == [0, 1, 2, 3, 4]  # one every 20 ms, a new trajectory
         assert all(p.duration == pytest.approx(0.02) for p in peer.points)
-        # ROS-I's speed fraction of each point's velocity, Δq / period = 0.02 m / 0.02 s = 1 m/s on joint a,
-        # against its limit of 2: 0.5 (the first point moves the command from where the robot is)
+        # ROS-I's speed fraction of each point's velocity: the largest |v / vmax| over the joints, clipped to
+        # [0, 1] (simple-message-facts, calc_velocity). Δq / period = 0.02 m / 0.02 s = 1 m/s on joint a, against
+        # its limit of 2: 0.5. The first point moves the command from where the robot is (as reported, in
+        # float32): 0.101 - 0.1 = 1 mm in 0.02 s, 0.05 m/s of 2, 0.025 (joint b, at its report's -0.2, moves by
+        # float32's rounding only, 3e-9 m: 1.5e-7 of its limit).
+        reported = [float(np.float32(0.1)), float(np.float32(-0.2))]
+        first = max(abs(0.101 - reported[0]) / 0.02 / 2.0, abs(-0.2 - reported[1]) / 0.02 / 1.0)
+        assert first == pytest.approx(0.025, rel=1e-4)
+        assert peer.points[0].velocity == pytest.approx(first, rel=1e-6)
         assert [p.velocity for p in peer.points[1:]] == pytest.approx([0.5] * 4, rel=1e-5)
-        assert 0 < peer.points[0].velocity <= 1.0
         # Each point carries the command of the cycle it was sent in (t = 0, 20, 40... ms).
-        assert [p.positions[0] for p in peer.points] == pytest.approx([0.1 + 0.001 * k for k in (0, 20, 40, 60, 80)],
-                                                                       abs=1e-6)
+        assert [p.positions[0] for p in peer.points] == pytest.approx(
+            [0.1 + 0.001 * (k + 1) for k in (0, 20, 40, 60, 80)], abs=1e-6)
         assert all(p.positions[2:] == (0.0,) * 8 for p in peer.points)  # padded to ten joints
         wait_for(lambda: hw.replies == 5, "the five replies")
     finally:

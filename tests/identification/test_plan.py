@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
@@ -40,11 +41,24 @@ def test_the_plan_reads_the_controller_file_with_its_overrides() -> None:
 
 
 def test_the_printed_plans_say_where_how_much_how_long_and_what_binds() -> None:
+    from jointctl.identification.frequency_response import model_plant
+    from jointctl.identification.identify import SETTLE_AFTER_S, SETTLE_S
+
     scenario = scenario_for_robot("one_dof", "position")
     safety = Safety(limits=UserLimits(max_effort=40.0, workspace=(-0.8, -0.2)))
-    text = format_plan(plan_identify(scenario, "joint1", safety=safety))
-    for fragment in ("nothing moves", "Joint joint1", "starting at -0.5 m", "Chirp 0.2 to 3 Hz over 10 s",
-                     "13 s with the rests", "window [-0.8, -0.2] m (the workspace)", "limit 40 N (--max-effort)",
+    f_start, f_end, chirp_s = 0.3, 2.5, 8.0
+    text = format_plan(plan_identify(scenario, "joint1", safety=safety, f_start_hz=f_start, f_end_hz=f_end,
+                                     duration_s=chirp_s))
+    # From the scenario, the robot model and the controller file (p 400 N/m, d 0, no feed-forward): the piston
+    # rests m·g below where it starts, droops m·g/p under its P loop, and has the workspace's room below.
+    start = scenario.initial_positions["joint1"]
+    mass, _ = model_plant(load_robot_model(scenario.robot.description), "joint1", {"joint1": start})
+    load = mass * 9.81
+    for fragment in ("nothing moves", "Joint joint1", f"starting at {start:g} m",
+                     f"Chirp {f_start:g} to {f_end:g} Hz over {chirp_s:g} s",
+                     f"{SETTLE_S + chirp_s + SETTLE_AFTER_S:g} s with the rests",
+                     "window [-0.8, -0.2] m (the workspace)", "limit 40 N (--max-effort)",
+                     f"load at rest {load:.4g} N", f"droop {load / 400.0:.3g} m",
                      "Predicted peaks: swing", "Binding limit:"):
         assert fragment in text, fragment
     plan = plan_bode(scenario, "joint1_position_controller", [0.5, 5.0, 20.0], safety=safety)
@@ -60,6 +74,10 @@ def test_the_printed_plans_say_where_how_much_how_long_and_what_binds() -> None:
                         bandwidth_hz=5.0, step=0.1, check_on_robot=False)
     assert plan["gains"] == pytest.approx(designed["gains"], rel=1e-9)
     assert f"Designed gains p {designed['gains']['p']:.4g}" in text
+    # ζ 0.7 (autotune's default): the overshoot of a second-order step, exp(-π·ζ / sqrt(1 - ζ²)) = 4.599 %
+    # (the design meets it on the sampled loop, printed to 4 digits).
+    overshoot = float(re.search(r"overshoot_pct ([\d.]+)", text).group(1))
+    assert overshoot == pytest.approx(100 * math.exp(-math.pi * 0.7 / math.sqrt(1 - 0.7**2)), abs=0.005)
     assert "Check step 0.1 m (asked 0.1)" in text and "Check sweep" in text
 
 

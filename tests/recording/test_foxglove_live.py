@@ -125,3 +125,108 @@ def test_a_bad_port_on_the_command_line_is_one_line_exit_2(command):
     assert result.returncode == 2, result.stderr
     lines = [line for line in result.stderr.strip().splitlines() if not line.startswith("jointctl: took ")]
     assert lines == ["jointctl: error: --foxglove: must be a TCP port, 0 to 65535 (got '70000')"]
+
+
+async def _fetch_assets(url: str, uris: list[str]) -> dict[str, tuple[int, bytes]]:
+    """Fetch each of ``uris`` with the protocol's ``fetchAsset``: {uri: (status, data or error text)}
+    (status 0: served, 1: refused)."""
+    replies: dict[str, tuple[int, bytes]] = {}
+    async with websockets.connect(url, subprotocols=[SUBPROTOCOL], open_timeout=10) as ws:
+        while True:  # the server says it serves assets before any is asked for
+            message = await asyncio.wait_for(ws.recv(), 10)
+            if isinstance(message, str) and json.loads(message)["op"] == "serverInfo":
+                assert "assets" in json.loads(message)["capabilities"]
+                break
+        for request_id, uri in enumerate(uris):
+            await ws.send(json.dumps({"op": "fetchAsset", "uri": uri, "requestId": request_id}))
+            while True:
+                data = await asyncio.wait_for(ws.recv(), 10)
+                if isinstance(data, bytes) and data[0] == 4:  # fetch asset response
+                    answered, status, length = struct.unpack_from("<IBI", data, 1)
+                    assert answered == request_id
+                    replies[uri] = (status, data[10 + length:] if status == 0 else data[10:10 + length])
+                    break
+    return replies
+
+
+@pytest.mark.wall_clock
+def test_only_the_meshes_the_urdf_names_are_served(tmp_path, write_scenario):
+    package = tmp_path / "packages" / "meshes_pkg"
+    (package / "meshes").mkdir(parents=True)
+    (package / "package.xml").write_text("<package><name>meshes_pkg</name></package>")
+    named, other = package / "meshes" / "link.stl", package / "meshes" / "other.stl"
+    named.write_bytes(b"solid link\nendsolid link\n")
+    other.write_bytes(b"solid other\nendsolid other\n")
+    urdf = ('<robot name="r"><link name="a"><visual><geometry>'
+            '<mesh filename="package://meshes_pkg/meshes/link.stl" scale="1 1 1"/></geometry></visual></link></robot>')
+    session = Session(load_scenario(write_scenario(step_scenario())))
+    live = FoxgloveLive(robot=session.robot, hardware=session.hardware, manager=session.manager, loop=session.loop,
+                        urdf=urdf, port=0, package_path=(str(tmp_path / "packages"),))
+    asked = ["package://meshes_pkg/meshes/link.stl",  # named by the URDF
+             "package://meshes_pkg/meshes/other.stl",  # in the same package, not named
+             f"file://{other}",  # the same file by its path
+             "package://meshes_pkg/package.xml", "package://meshes_pkg/meshes/missing.stl"]
+    try:
+        replies = asyncio.run(_fetch_assets(live.url, asked))
+    finally:
+        live.stop()
+    assert replies[asked[0]] == (0, named.read_bytes())
+    for uri in asked[1:]:
+        assert replies[uri][0] == 1, uri  # refused, nothing of the file sent
+        assert b"other" not in replies[uri][1] and b"<package>" not in replies[uri][1]
+
+
+def test_the_objects_and_events_channels_follow_spawns_removals_and_failures(tmp_path, write_scenario):
+    """A weight spawned at 0.2 s falls freely from 2.5 m, is removed at 0.5 s, and a controller fails at 0.6 s:
+    the objects channel (read from an MCAP sink on the server's context) shows it at the free-fall height at
+    every scene tick from its spawn, deletes it once, then sends nothing;
+    the events channel has the three events in order, stamped at their loop times."""
+    import foxglove
+    from tests.recording.test_mcap_record import WEIGHT, read_mcap
+
+    path = write_scenario(step_scenario(duration_s=1.0, objects=[WEIGHT]))
+    session = Session(load_scenario(path))
+    context = foxglove.Context()
+    writer = foxglove.open_mcap(tmp_path / "live.mcap", allow_overwrite=True, context=context)
+    live = FoxgloveLive(robot=session.robot, hardware=session.hardware, manager=session.manager, loop=session.loop,
+                        urdf=session.robot.name, port=0, context=context)
+    try:
+        session.run(0.5)
+        session.world.remove("weight")
+        session.run(0.1)
+        controller = session.manager.controller("joint1_position_controller")
+        session.manager.fail(controller, "deliberate", session.loop.time_s)
+        session.run(0.1)
+    finally:
+        live.stop()
+        writer.close()
+        session.close()
+    _, by_topic, _, _, _ = read_mcap(tmp_path / "live.mcap")
+
+    def loop_s(log_time):
+        return (log_time - live.origin_ns) * 1e-9
+
+    events = [(round(loop_s(t), 3), m["message"], m["level"]) for t, _, m in by_topic[fm.EVENTS]]
+    assert [e[1] for e in events[:2]] == ["spawned weight", "removed weight"]
+    assert events[0][0] == pytest.approx(WEIGHT["spawn_at_s"], abs=0.0011) and events[1][0] == pytest.approx(0.5)
+    assert events[0][2] == events[1][2] == fm.INFO
+    (at, text, level), = events[2:]
+    assert at == pytest.approx(0.6) and level == fm.ERROR
+    assert text.startswith("controller joint1_position_controller failed at t = 0.600 s: deliberate")
+
+    scene = [(loop_s(t), m) for t, _, m in by_topic[fm.OBJECTS]]
+    shown = [(s, m) for s, m in scene if m["entities"]]
+    deleted = [(s, m) for s, m in scene if m["deletions"]]
+    period = 1.0 / fm.SCENE_RATE_HZ
+    assert len(shown) == round((0.5 - WEIGHT["spawn_at_s"]) / period)  # every scene tick while it is there
+    g = 9.81
+    for s, m in shown:
+        entity, = m["entities"]
+        assert entity["id"] == "weight" and not m["deletions"]
+        z = entity["cylinders"][0]["pose"]["position"]["z"]
+        fall_s = s - WEIGHT["spawn_at_s"]
+        assert z == pytest.approx(WEIGHT["xyz"][2] - 0.5 * g * fall_s ** 2, abs=0.01)
+    (s, m), = deleted
+    assert [d["id"] for d in m["deletions"]] == ["weight"] and not m["entities"]
+    assert 0.5 <= s < 0.5 + period + 1e-9
+    assert scene[-1][0] == s  # nothing after the deletion

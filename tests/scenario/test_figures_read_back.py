@@ -153,7 +153,17 @@ def test_a_revolute_step_is_in_rad_and_n_m_with_its_theory_and_limits(tmp_path):
     ("arm7dof", "joint1", [f"initial_positions.joint{k}={q}" for k, q in enumerate([0, 1, 0, -2, 0, 1, 0])],
      ("N·m", "rad")),
 ])
-def test_identify_draws_the_residual_below_the_fit(tmp_path, robot, joint, overrides, units):
+def test_identify_draws_the_residual_below_the_fit(tmp_path, monkeypatch, robot, joint, overrides, units):
+    from jointctl.identification import identify as identify_module
+
+    drawn = []
+
+    def keep(path, time_s, panels, **kwargs):
+        drawn.append(panels)
+        return plot_panels(path, time_s, panels, **kwargs)
+
+    plot_panels = identify_module.plot_panels
+    monkeypatch.setattr(identify_module, "plot_panels", keep)
     effort_unit, position_unit = units
     fit, _ = identify_on_robot(scenario_for_robot(robot, "position", overrides), joint, out_dir=tmp_path,
                                f_start_hz=0.2, f_end_hz=1.0)
@@ -162,12 +172,21 @@ def test_identify_draws_the_residual_below_the_fit(tmp_path, robot, joint, overr
     assert top.ylabel == f"effort [{effort_unit}]"
     assert re.fullmatch(rf"residual \[[fpnµmk]?{re.escape(effort_unit)}\]", bottom.ylabel), bottom.ylabel
     assert bottom.legend == ["measured - model"]
-    # The residual is what the fit leaves: its RMS, with the unit's prefix read off the label (the line
-    # drawn through each slice's extremes overstates it a little; the 1-DOF's is at rounding level).
+    # The drawn residual in SI units, with the unit's prefix read off the label.
     prefix = bottom.ylabel[len("residual ["):-len(effort_unit) - 1]
     factor = {"": 1.0, "f": 1e-15, "p": 1e-12, "n": 1e-9, "µ": 1e-6, "m": 1e-3, "k": 1e3}[prefix]
     _, residual = line_points(figure, "series-measured-model", axes_index=1)
-    assert 0.5 * fit.residual_rms < math.sqrt(np.mean((residual * factor) ** 2)) < 2.0 * fit.residual_rms
+    # What was handed to the figure: the residual is the measured effort minus the model, sample by sample (over
+    # every row, the fit's RMS being over the rows where the joint moves: not compared).
+    (effort, below), = drawn
+    model = next(v for k, v in effort.series.items() if k.startswith("identified model"))
+    given = np.asarray(below.series["measured - model"])
+    np.testing.assert_array_equal(given, np.asarray(effort.series["measured effort"]) - np.asarray(model))
+    # The drawn line goes through each slice's extremes (samples themselves): its highest and lowest points are
+    # the residual's, to a fraction of a pixel (the axis' span over its 200-odd px height: 1/200 of the span).
+    span = given.max() - given.min()
+    assert residual.max() * factor == pytest.approx(given.max(), abs=span / 200)
+    assert residual.min() * factor == pytest.approx(given.min(), abs=span / 200)
     assert svg(tmp_path, f"identify_{joint}_position").axes[0].ylabel == f"position [{position_unit}]"
 
 

@@ -188,3 +188,43 @@ def test_a_sweep_from_host_b_runs_on_workers_of_both_hosts_and_gives_the_same_ta
         stop(processes)
     here = sweep(tmp_path / "here", in_process=True)
     assert (out / "results.csv").read_bytes() == here
+
+
+def test_workers_of_another_jointctl_are_refused_before_any_run(loopback_cluster, monkeypatch):
+    """This process reports another version than the one the workers import: the sweep is refused before any run,
+    naming both versions, and the engine has let go of the cluster."""
+    from jointctl import __version__ as theirs
+    from jointctl.errors import JointCtlError
+
+    monkeypatch.setattr(engine_module, "__version__", "0.0.0+other")
+    engine = Engine(scheduler=loopback_cluster)
+    with pytest.raises(JointCtlError) as refused:
+        engine.start()
+    assert refused.value.field == "--scheduler" and refused.value.value == loopback_cluster
+    message = refused.value.message
+    assert message.startswith("workers run another jointctl than this one (0.0.0+other): {")
+    assert message.count(repr(theirs)) == 2  # each of the two workers, with the version it imports
+    assert engine.client is None
+
+
+def test_a_run_whose_worker_dies_is_a_row_saying_so_and_the_others_measure(tmp_path, monkeypatch):
+    """Run 1 kills its worker process; with no retry allowed (Dask's allowed-failures 0) its row names the
+    worker's death and keeps its values, and the nanny's new worker runs the rest as this process does. (One task
+    at a time on the worker, worker-saturation 1: no other task is lost with it.)"""
+    import dask
+
+    from jointctl.sweep.runner import RunTask, evaluate
+    from tests.sweep.dying_worker import DYING_INDEX, evaluate_or_die
+
+    monkeypatch.setattr(engine_module, "evaluate_on_worker", evaluate_or_die)
+    tasks = [RunTask(k, "one_dof_step", {"payload_kg": payload}) for k, payload in enumerate((0.0, 1.0, 2.5))]
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0,
+                          "distributed.scheduler.worker-saturation": 1.0}), Engine(workers=1) as engine:
+        rows, interrupted = engine.run(tasks)
+    assert not interrupted and [row.index for row in rows] == [0, 1, 2]
+    died = rows[DYING_INDEX]
+    assert died.values == {"payload_kg": 1.0} and died.metrics == {}
+    assert died.error.startswith("KilledWorker: ") and "died" in died.error, died.error
+    for row in rows[:DYING_INDEX] + rows[DYING_INDEX + 1:]:
+        here = evaluate(tasks[row.index])
+        assert row.error is None and row.metrics == here.metrics

@@ -1,10 +1,11 @@
-"""results.csv, summary.json, traces.npz and the figures, from rows made by hand."""
+"""results.csv, summary.json, traces.npz and the figures (their drawn data read back), from rows made by hand."""
 
 from __future__ import annotations
 
 import csv
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -135,3 +136,78 @@ def test_a_run_that_did_not_settle_is_drawn_to_its_commanded_step(result, tmp_pa
     unsettled.metrics["final_value"] = None
     y = figures._normalised(unsettled.trace["position"], unsettled.metrics, unsettled.trace["reference"])
     assert y is not None and y[-1] == pytest.approx(1.0, abs=0.05)  # the trace's -0.5 end over the 0.3 m step
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """{file name: the matplotlib Figure saved there}: each sweep figure's drawn data, read back."""
+    from matplotlib.figure import Figure
+
+    saved = {}
+    save = Figure.savefig
+
+    def keep(fig, path, *args, **kwargs):
+        saved[Path(path).name] = fig
+        return save(fig, path, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", keep)
+    return saved
+
+
+def _dots(ax) -> np.ndarray:
+    """The (x, y) of the first scatter's dots."""
+    return np.asarray(ax.collections[0].get_offsets(), dtype=float)
+
+
+def test_each_figure_draws_its_metric_against_its_field(result, tmp_path, drawn):
+    """The finished runs (0, 1, 2 of the fixture; 3 failed) as dots at (field, metric), the nominal run's value
+    dashed and the spec's limit dotted; a metric a run did not measure is a cross at the lowest measured value."""
+    write_figures(result, tmp_path)
+    payloads, gains = [0.0, 0.0, 5.0], [200, 400, 200]
+    overshoots, settlings = [30.5, 44.7, 61.0], [0.71, 0.2, math.nan]
+    for metric, ys, limit in (("overshoot_pct", overshoots, 50.0), ("settling_time_s", settlings, 0.8)):
+        for field, slug, xs in (("payload_kg", "payload_kg", payloads),
+                                ("controllers.c.pid.p", "controllers_c_pid_p", gains)):
+            ax, = drawn[f"{metric}_vs_{slug}.png"].axes
+            assert (ax.get_xlabel(), ax.get_ylabel()) == (field, metric)
+            assert ax.get_title() == f"{metric} against {field} (1 run failed, not shown)"
+            np.testing.assert_array_equal(_dots(ax), np.column_stack([xs, ys]))
+            lines = {line.get_label(): line.get_ydata()[0] for line in ax.get_lines()}
+            assert lines[f"spec {metric}<={limit:g}"] == limit
+            nominal = {"overshoot_pct": 44.7, "settling_time_s": 0.2}[metric]
+            assert lines[f"nominal {nominal:.4g}"] == nominal
+    ax, = drawn["settling_time_s_vs_payload_kg.png"].axes
+    np.testing.assert_array_equal(ax.collections[1].get_offsets(), [[5.0, 0.2]])  # run 2 never settled
+
+
+def test_each_heat_map_shows_its_metric_in_the_cells_of_the_two_fields(result, tmp_path, drawn):
+    """Payload across (0, 5), the gain up (200, 400); a cell per run, empty where the run failed or did not
+    measure; the cells that break the spec framed."""
+    write_figures(result, tmp_path)
+    for metric, cells, failing in (("overshoot_pct", [[30.5, 61.0], [44.7, math.nan]], {"61"}),
+                                   ("settling_time_s", [[0.71, math.nan], [0.2, math.nan]], set())):
+        figure = drawn[f"heatmap_{metric}.png"]
+        ax = figure.axes[0]
+        assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_title()) == ("payload_kg", "controllers.c.pid.p", metric)
+        assert [t.get_text() for t in ax.get_xticklabels()] == ["0", "5"]
+        assert [t.get_text() for t in ax.get_yticklabels()] == ["200", "400"]
+        np.testing.assert_array_equal(ax.images[0].get_array().filled(np.nan), cells)
+        texts = {(round(t.get_position()[0]), round(t.get_position()[1])): t.get_text() for t in ax.texts}
+        assert texts == {(j, i): f"{v:.3g}" for (i, j), v in np.ndenumerate(cells) if math.isfinite(v)}
+        framed = {texts[(round(p.get_x() + 0.5), round(p.get_y() + 0.5))] for p in ax.patches}
+        assert framed == failing
+        assert figure.axes[1].get_ylabel() == metric  # the colour bar
+
+
+def test_the_responses_figure_draws_each_finished_run_normalised(result, tmp_path, drawn):
+    """Runs 0 to 2 (and the nominal, dashed), each 0 before its step at 0.5 s and 1 at its final value -0.5."""
+    write_figures(result, tmp_path)
+    ax, = drawn["responses.png"].axes
+    assert ax.get_title() == "every run's joint1 response (3 runs)"
+    segments = ax.collections[0].get_segments()
+    assert len(segments) == 3
+    for segment, r in zip(segments, result.rows):
+        u = (r.trace["position"] + 0.2) / -0.3  # the fixture's step from -0.2 to -0.5
+        np.testing.assert_allclose(segment, np.column_stack([r.trace["time_s"], u]), atol=1e-12)
+    nominal, = [line for line in ax.get_lines() if line.get_label() == "nominal"]
+    np.testing.assert_allclose(nominal.get_ydata(), (result.nominal.trace["position"] + 0.2) / -0.3, atol=1e-12)
