@@ -210,7 +210,8 @@ def _step_move(loop: StartingGains, hold, period_s: float) -> StartingGains:
     note = loop.note
     if ramp_s:
         extra = (f"its step scenario ramps over {ramp_s:g} s: a step's first cycle would ask the derivative kick "
-                 f"d·step/period = {d * loop.step / period_s:.4g}, beyond the effort limit {loop.effort_limit:g}")
+                 f"d·step/period = {d * loop.step / period_s:.4g}, more than half of what the effort limit "
+                 f"{loop.effort_limit:g} leaves beside the load")
         note = f"{note}; {extra}" if note else extra
     return replace(loop, note=note, ramp_s=ramp_s, step_at_s=step_at, settling_s=settling,
                    peak_effort=figures.peak_effort)

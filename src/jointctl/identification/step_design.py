@@ -6,7 +6,7 @@ The linear design (:func:`jointctl.identification.autotune.design`) is exact for
 with the derivative on the error, the first cycle's kick ``d·Δr/h`` is clamped by the effort limit and the
 step overshoots less than designed (10 % at a 0.02 rad step, 4 % at 0.1 rad on a small arm); a large step
 saturates for longer and settles later. :func:`solve_step` therefore searches the gains on the saturating
-loop itself: for a trial stiffness ``p`` the damping ``d`` that gives the overshoot asked (bisection: the
+loop itself: for a trial stiffness ``p`` the damping ``d`` that gives the overshoot asked (regula falsi: the
 overshoot falls as ``d`` grows), and ``p`` scaled until the settling time is the one asked (the time scale of
 a loop goes as ``1/√p``). An integral (a gain in proportion to ``p``, its clamp given) and the gravity
 feed-forward are part of the loop searched, when asked for.
