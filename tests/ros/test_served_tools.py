@@ -120,9 +120,11 @@ def test_autotune_through_the_served_robot_meets_the_spec_and_puts_the_gains_bac
     # The step ran with the new gains: the chapter's p 400 alone (ζ 0.25) overshoots 44 %.
     assert result["robot"]["step_overshoot_pct"] == pytest.approx(4.6, abs=1.0)
     # Designed at the 0.1 m step, whose derivative kick the 1000 N limit clamps: small moves see the model's
-    # bandwidth for those gains (above 5 Hz), and the served robot measures it.
+    # bandwidth for those gains (5.66 Hz, above the 5 asked), and the served robot measures about it: its short
+    # real-time sweep (7 sines of 0.5 s between 2.5 and 10 Hz, the crossing interpolated between two of them
+    # 26 % apart) read 5.38 Hz where the in-process sweep of the same gains reads 5.62.
     assert "kick" in result["note"]
-    assert result["robot"]["bandwidth_hz"] == pytest.approx(result["model"]["bandwidth_hz"], rel=0.05)
+    assert 5.0 < result["robot"]["bandwidth_hz"] == pytest.approx(result["model"]["bandwidth_hz"], rel=0.08)
     assert result["previous_gains"] == result["gains_restored"] == {"p": 400.0, "i": 0.0, "d": 0.0}
     served = reconfigure(ros_env, POSITION_PID)
     assert (served["p"], served["i"], served["d"]) == (400.0, 0.0, 0.0)
