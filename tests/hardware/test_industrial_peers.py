@@ -19,6 +19,7 @@ from jointctl.trajectory.goals import GoalStatus
 from jointctl.trajectory.messages import JointTrajectory, JointTrajectoryPoint
 from jointctl.wire.simple_message import VALID_POSITION, VALID_TIME, VALID_VELOCITY, JointTrajPtFull
 from tests.hardware.controller_doubles import KINDS, ControllerDouble, ros_i_fraction
+from tests.waiting import wait_until
 
 SCENARIO = scenario_for_robot("arm7dof", "industrial")
 ROBOT = load_robot_model(SCENARIO.robot.description)
@@ -165,9 +166,7 @@ def test_a_streamed_command_as_full_points_carries_times_from_the_motions_start(
             hardware.read()
             hardware.write()
             hardware.advance(0.001)
-        deadline = time.monotonic() + 5.0
-        while len(double.points) < 3 and time.monotonic() < deadline:
-            time.sleep(0.01)
+        wait_until(lambda: len(double.points) >= 3, what="three points at the controller", timeout_s=5.0)
         sent = [m for _, m in double.points]
         assert [m.sequence for m in sent] == [0, 1, 2]  # one every 20 ms, from a new trajectory
         assert [m.time for m in sent] == pytest.approx([0.02, 0.04, 0.06], rel=1e-6)
@@ -229,15 +228,13 @@ def test_the_velocity_is_the_difference_of_the_last_two_reports_over_their_arriv
             reports = hardware.state_reports
             sent = time.monotonic()
             double.report()
-            while hardware.state_reports == reports:
-                time.sleep(0.001)
+            wait_until(lambda: hardware.state_reports != reports, what="the report read")
             return sent, time.monotonic()
 
         sent1, seen1 = send(PRE_POSE)
         hardware.read()
         assert hardware.velocity == [0.0] * len(JOINTS)  # the same positions again: at rest
         moved = [q + d for q, d in zip(PRE_POSE, (0.01, -0.02, 0.0, 0.005, 0.03, -0.001, 0.0))]
-        time.sleep(0.05)  # an interval of its own between the two reports (the bounds hold without it)
         sent2, seen2 = send(moved)
         hardware.read()
         dq = np.float32(moved) - np.float32(PRE_POSE)  # float32 on the wire
