@@ -3,6 +3,7 @@
 #   make test   create .venv, install with test extras, run the test suite
 #   make bench  run the speed and memory benchmarks, printing ratios to a bare MuJoCo loop
 #   make ros    install Debian's ROS 1 packages and generate jointctl's message classes (make test does it)
+#   make ros2   install ROS 2 (Jazzy, with ros2_control) unless one is found (make test does it)
 #   make web    build the tuning page's libraries (uPlot, three.js; npm registry) into the package
 #   make browser  install Debian's Chromium and ChromeDriver for the page's browser tests (make test does it)
 #   make render   install Mesa's software EGL and ffmpeg for videos of runs (make demo and make test do it)
@@ -18,7 +19,7 @@ OUT    ?= out/demo
 
 WEB_ASSET := src/jointctl/tuning/static/vendor/three.module.js
 
-.PHONY: demo test bench venv ros web browser render clean
+.PHONY: demo test bench venv ros ros2 web browser render clean
 
 $(VENV)/.installed: pyproject.toml scripts/bootstrap.sh
 	PYTHON=$(PYTHON) VENV=$(VENV) bash scripts/bootstrap.sh
@@ -41,6 +42,11 @@ ros: venv
 	bash scripts/gen_ros_msgs.sh
 	echo "$(CURDIR)/build/ros/py" > "$$($(PY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')/jointctl_ros_msgs.pth"
 
+# ROS 2: the user's own (JOINTCTL_ROS2_SETUP or /opt/ros/<distro>), else the prebuilt Jazzy beside the
+# project. jointctl reaches it through the environment its setup.bash makes (see README, "ROS 2").
+ros2:
+	bash scripts/install_ros2.sh
+
 browser:
 	bash scripts/install_browser.sh
 
@@ -52,7 +58,7 @@ render:
 # real-time measurements that need the whole machine (marked exclusive). The slowest are listed.
 JOBS ?= $(shell nproc)
 
-test: ros browser render
+test: ros ros2 browser render
 	$(PY) -m pytest -q -n $(JOBS) --dist loadgroup --durations=30 -m "not exclusive"
 	$(PY) -m pytest -q --durations=5 -m exclusive
 

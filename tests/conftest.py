@@ -51,6 +51,7 @@ def write_scenario(tmp_path: Path):
 #: A single test elsewhere says so with ``@pytest.mark.wall_clock``.
 WALL_CLOCK_TESTS = (
     "tests/ros/",
+    "tests/ros2/",
     "tests/hardware/test_industrial.py",
     "tests/hardware/test_industrial_peers.py",
     "tests/industrial_controller/test_controller.py",
