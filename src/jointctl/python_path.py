@@ -45,4 +45,29 @@ def prefer_environment(path: list[str] | None = None, *, prefix: str | None = No
     return moved
 
 
-__all__ = ["prefer_environment"]
+def ros2_site_dirs(path: list[str] | None = None) -> list[str]:
+    """The entries of ``path`` (default ``sys.path``) that hold a ROS 2 (an ``rclpy`` package inside)."""
+    path = sys.path if path is None else path
+    return [p for p in path if p and os.path.isfile(os.path.join(p, "rclpy", "__init__.py"))]
+
+
+def set_aside_ros2(path: list[str] | None = None, modules: dict | None = None) -> list[str]:
+    """Take a sourced ROS 2's site directories out of ``path`` (default ``sys.path``) and forget the modules
+    imported from them (``modules``, default ``sys.modules``), for a ROS 1 process in a shell where ROS 2's
+    ``setup.bash`` was sourced too: ROS 2's ``std_msgs``, ``rosgraph_msgs``... carry ROS 1's names and would
+    shadow them. Returns the entries taken out."""
+    path = sys.path if path is None else path
+    modules = sys.modules if modules is None else modules
+    taken = ros2_site_dirs(path)
+    if not taken:
+        return []
+    path[:] = [p for p in path if p not in taken]
+    roots = tuple(os.path.join(os.path.realpath(p), "") for p in taken)
+    for name, module in list(modules.items()):
+        where = getattr(module, "__file__", None) or ""
+        if where and os.path.realpath(where).startswith(roots):
+            del modules[name]
+    return taken
+
+
+__all__ = ["prefer_environment", "ros2_site_dirs", "set_aside_ros2"]

@@ -24,13 +24,33 @@ def say_warnings(metrics: dict) -> None:
 
 
 def ros_edge(module: str):
-    """``jointctl.ros.<module>``, or one line saying ROS 1 is missing."""
+    """``jointctl.ros.<module>``, or one line saying ROS 1 is missing. In a shell where a ROS 2 is sourced too,
+    its Python packages (which carry ROS 1's names: std_msgs, rosgraph_msgs...) are set aside first
+    (:func:`jointctl.python_path.set_aside_ros2`), so ROS 1's import."""
     import importlib
 
+    from jointctl.python_path import set_aside_ros2
+
+    set_aside_ros2()
     try:
         return importlib.import_module(f"jointctl.ros.{module}")
     except ImportError as exc:
         raise JointCtlError(f"ROS 1 is not available ({exc}); install it with 'make ros'") from None
+
+
+def ros2_edge(module: str):
+    """``jointctl.ros2.<module>``, or one line saying how to reach ROS 2 (its setup.bash sourced in this shell)."""
+    import importlib
+
+    try:
+        return importlib.import_module(f"jointctl.ros2.{module}")
+    except ImportError as exc:
+        import glob
+
+        found = sorted(glob.glob("/opt/ros/*/lib/python3*/site-packages/rclpy"))
+        how = (f"source {found[0].split('/lib/')[0]}/setup.bash first" if found
+               else "install ROS 2 (make ros2) and source its setup.bash")
+        raise JointCtlError(f"ROS 2 is not reachable from this shell ({exc}): {how}") from None
 
 
 def loop_hardware_arguments(parser: argparse.ArgumentParser) -> None:

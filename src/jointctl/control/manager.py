@@ -217,6 +217,13 @@ class ControllerManager:
     def defined(self) -> tuple[str, ...]:
         return tuple(self._definitions)
 
+    def type_of(self, name: str) -> str:
+        """The YAML ``type`` of defined controller ``name`` (ControllerError when none is defined)."""
+        params = self._definitions.get(name)
+        if params is None:
+            raise ControllerError("no controller of that name is defined", field="controller", value=name)
+        return str(params.values.get("type", ""))
+
     # -- lifecycle ---------------------------------------------------------------
     def load(self, name: str) -> Controller:
         """Build and configure controller ``name`` from its definition."""

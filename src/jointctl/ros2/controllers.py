@@ -1,0 +1,227 @@
+"""Each running controller's face on ROS 2, under the names and interfaces of ros2_controllers.
+
+ros2_control makes every controller a node named after it (``/<controller>``) with its parameters, topics
+relative to it (``~/reference`` is ``/<controller>/reference``) and the joint states on the global
+``/joint_states``. jointctl's controllers get the same faces:
+
+- a joint state controller (``joint_state_broadcaster/JointStateBroadcaster``, or the chapter's
+  ``joint_state_controller``): ``/joint_states`` (sensor_msgs/msg/JointState) at its ``publish_rate``;
+- a PID joint controller (the chapter's effort position and velocity controllers): pid_controller's face.
+  ``~/reference`` (control_msgs/msg/MultiDOFCommand: ``dof_names`` [the joint, or empty], ``values`` [m, rad,
+  m/s or rad/s]; best effort, depth 1, as pid_controller subscribes), ``~/controller_state``
+  (control_msgs/msg/MultiDOFStateStamped) at ``state_rate_hz``, and parameters ``dof_names``,
+  ``command_interface`` (``effort``), ``reference_and_state_interfaces`` (``[position]`` or ``[velocity]``),
+  read-only, and ``gains.<joint>.{p, i, d, i_clamp_max, i_clamp_min, antiwindup}``, which ``ros2 param set``
+  changes while running: validated whole (finite, p, i, d not negative, i_clamp_min not above i_clamp_max) and
+  applied from the next cycle; a refused change is answered unsuccessful with the reason, and the gains stay;
+- a trajectory executor: joint_trajectory_controller's ``~/follow_joint_trajectory`` action
+  (control_msgs/action/FollowJointTrajectory) and ``~/joint_trajectory`` topic. As JTC does, a goal that is
+  not valid is rejected when it arrives (its reason, with the error code JTC's result would carry, logged on
+  /rosout); one that strays beyond its tolerances ends aborted with PATH_TOLERANCE_VIOLATED (-4) or
+  GOAL_TOLERANCE_VIOLATED (-5), a cancel decelerates the joints to rest and ends canceled.
+
+Callbacks run on the executor's threads; they hand values to the controllers' doors (single-slot, read by the
+loop at the start of its next cycle) and never touch the loop's state otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+
+from control_msgs.action import FollowJointTrajectory
+from control_msgs.msg import MultiDOFCommand, MultiDOFStateStamped, SingleDOFState
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory as Ros2JointTrajectory
+from trajectory_msgs.msg import JointTrajectoryPoint
+
+from jointctl.control.joint_controllers import JointPositionController, _EffortJointController
+from jointctl.control.joint_state_controller import JointStateController
+from jointctl.control.pid import PidGains
+from jointctl.errors import InvalidCommand, JointCtlError
+from jointctl.ros2.conversions import joint_state_to_ros2, trajectory_from_ros2
+from jointctl.trajectory.errors import InvalidTrajectory
+from jointctl.trajectory.executor import GoalResult, GoalStatus, TrajectoryExecutor, TrajectoryFeedback
+
+#: pid_controller's ``~/reference`` subscription: best effort, depth 1 (ros2-facts).
+REFERENCE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+GAIN_FIELDS = ("p", "i", "d", "i_clamp_max", "i_clamp_min")
+RESULT_WAIT_S = 0.05  # how often a goal's execute callback looks for a cancel [s]
+
+
+def pid_faced(controller) -> bool:
+    """Whether ``controller`` gets pid_controller's face (a PID on one joint, through its gains)."""
+    return isinstance(controller, _EffortJointController)
+
+
+class JointStateFace:
+    """``/joint_states`` of a joint state controller."""
+
+    def __init__(self, node: Node, controller: JointStateController, clock) -> None:
+        self.publisher = node.create_publisher(JointState, "/joint_states", 10)
+        controller.subscribe(lambda sample: self.publisher.publish(
+            joint_state_to_ros2(sample, clock.stamp(sample.time_s))))
+
+
+class PidFace:
+    """pid_controller's topics and parameters on a jointctl PID joint controller (see the module's doc)."""
+
+    def __init__(self, node: Node, controller: _EffortJointController, session, clock,
+                 state_rate_hz: float) -> None:
+        self.node, self.controller, self.session, self.clock = node, controller, session, clock
+        joint = controller.joint
+        self.prefix = f"gains.{joint}."
+        interface = "position" if isinstance(controller, JointPositionController) else "velocity"
+        read_only = ParameterDescriptor(read_only=True)
+        node.declare_parameter("dof_names", [joint], read_only)
+        node.declare_parameter("command_interface", "effort", read_only)
+        node.declare_parameter("reference_and_state_interfaces", [interface], read_only)
+        gains = controller.pid.gains
+        for name in GAIN_FIELDS:
+            node.declare_parameter(self.prefix + name, float(getattr(gains, name)))
+        node.declare_parameter(self.prefix + "antiwindup", bool(gains.antiwindup))
+        node.add_on_set_parameters_callback(self._on_parameters)
+        self.subscription = node.create_subscription(MultiDOFCommand, "~/reference", self._on_reference,
+                                                     REFERENCE_QOS)
+        self.state_publisher = node.create_publisher(MultiDOFStateStamped, "~/controller_state", 1)
+        loop = session.loop
+        self._every = max(1, round(1.0 / (state_rate_hz * loop.period_s)))
+        self._count = 0
+        self._interface = interface
+        loop.add_observer(self._publish_state)
+
+    # -- parameters (executor thread) ------------------------------------------------------------
+    def _on_parameters(self, parameters) -> SetParametersResult:
+        changes = {p.name[len(self.prefix):]: p.value for p in parameters if p.name.startswith(self.prefix)}
+        if not changes:
+            return SetParametersResult(successful=True)
+        current = self.controller.pid.gains
+        values = {name: getattr(current, name) for name in (*GAIN_FIELDS, "antiwindup")}
+        for name, value in changes.items():
+            if name not in values:
+                return SetParametersResult(successful=False, reason=f"no gain {self.prefix}{name}")
+            if name == "antiwindup":
+                if not isinstance(value, bool):
+                    return SetParametersResult(successful=False, reason=f"{self.prefix}antiwindup must be a bool")
+            elif isinstance(value, bool) or not isinstance(value, (int, float)):
+                return SetParametersResult(successful=False, reason=f"{self.prefix}{name} must be a number")
+            values[name] = value if name == "antiwindup" else float(value)
+        try:
+            gains = PidGains(**values)
+        except JointCtlError as exc:
+            return SetParametersResult(successful=False, reason=f"{self.prefix}{exc.field.split('.')[-1]}: "
+                                                                f"{exc.message} (value {exc.value!r})")
+        self.controller.set_gains(gains)
+        self.node.get_logger().info(f"gains now p={gains.p:g} i={gains.i:g} d={gains.d:g} "
+                                    f"i_clamp=[{gains.i_clamp_min:g}, {gains.i_clamp_max:g}] "
+                                    f"antiwindup={gains.antiwindup}")
+        return SetParametersResult(successful=True)
+
+    # -- reference (executor thread) -------------------------------------------------------------
+    def _on_reference(self, msg: MultiDOFCommand) -> None:
+        joint = self.controller.joint
+        names = list(msg.dof_names)
+        if names and names != [joint]:
+            self.node.get_logger().warn(f"refused a reference for dof_names {names}: this controller has [{joint}]")
+            return
+        if len(msg.values) != 1:
+            self.node.get_logger().warn(f"refused a reference with {len(msg.values)} values for 1 dof ({joint})")
+            return
+        try:
+            self.controller.set_reference(float(msg.values[0]))
+        except InvalidCommand as exc:
+            self.node.get_logger().warn(f"refused {exc}")
+
+    # -- state (loop thread: publish only) -------------------------------------------------------
+    def _publish_state(self, time_s: float) -> None:
+        self._count += 1
+        if self._count % self._every:
+            return
+        c, hw = self.controller, self.session.hardware
+        i = c.index
+        position = self._interface == "position"
+        feedback = hw.position[i] if position else hw.velocity[i]
+        reference = c.reference
+        msg = MultiDOFStateStamped()
+        msg.header.stamp = self.clock.stamp(time_s)
+        state = SingleDOFState(name=c.joint, reference=float(reference), feedback=float(feedback),
+                               feedback_dot=float(hw.velocity[i]) if position else math.nan,
+                               error=float(reference - feedback), error_dot=math.nan,
+                               time_step=float(self.session.loop.period_s), output=float(c.effort_command[i]))
+        msg.dof_states = [state]
+        self.state_publisher.publish(msg)
+
+
+class TrajectoryFace:
+    """joint_trajectory_controller's action and topic on a trajectory executor (see the module's doc)."""
+
+    def __init__(self, node: Node, executor: TrajectoryExecutor, clock) -> None:
+        self.node, self.executor, self.clock = node, executor, clock
+        group = ReentrantCallbackGroup()
+        self.server = ActionServer(node, FollowJointTrajectory, "~/follow_joint_trajectory",
+                                   execute_callback=self._execute, goal_callback=self._on_goal,
+                                   cancel_callback=lambda _goal: CancelResponse.ACCEPT, callback_group=group)
+        self.subscription = node.create_subscription(Ros2JointTrajectory, "~/joint_trajectory", self._on_topic, 1,
+                                                     callback_group=group)
+        self._lock = threading.Lock()
+
+    def _trajectory(self, msg: Ros2JointTrajectory):
+        return trajectory_from_ros2(msg, self.clock.ros_time_at_loop_zero())
+
+    def _on_goal(self, goal) -> GoalResponse:
+        try:
+            self.executor.check_goal_shape(self._trajectory(goal.trajectory))
+        except InvalidTrajectory as exc:
+            self.node.get_logger().error(f"rejected a goal ({exc.error_code.name} {int(exc.error_code)}): {exc}")
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _on_topic(self, msg: Ros2JointTrajectory) -> None:
+        try:
+            self.executor.submit(self._trajectory(msg), now_s=self.clock.loop_now())
+        except InvalidTrajectory as exc:
+            self.node.get_logger().error(f"refused a trajectory ({exc.error_code.name}): {exc}")
+
+    def _execute(self, goal_handle):
+        """The goal's life (an executor thread): submitted to the loop, fed back, ended once."""
+        result = FollowJointTrajectory.Result()
+        try:
+            handle = self.executor.submit(self._trajectory(goal_handle.request.trajectory),
+                                          now_s=self.clock.loop_now(),
+                                          on_feedback=lambda fb: goal_handle.publish_feedback(self._feedback(fb)))
+        except InvalidTrajectory as exc:  # valid on arrival, not from where the robot is when it starts
+            result.error_code, result.error_string = int(exc.error_code), str(exc)
+            goal_handle.abort()
+            return result
+        done: GoalResult | None = None
+        while done is None:
+            done = handle.wait(RESULT_WAIT_S)
+            if goal_handle.is_cancel_requested and not handle.cancel_requested:
+                handle.cancel()
+        result.error_code, result.error_string = int(done.error_code), done.error_string
+        if done.status is GoalStatus.SUCCEEDED:
+            goal_handle.succeed()
+        elif done.status is GoalStatus.PREEMPTED and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        else:
+            goal_handle.abort()
+        return result
+
+    def _feedback(self, feedback: TrajectoryFeedback) -> FollowJointTrajectory.Feedback:
+        msg = FollowJointTrajectory.Feedback()
+        msg.header.stamp = self.clock.stamp(feedback.time_s)
+        msg.joint_names = list(feedback.joint_names)
+        msg.desired = JointTrajectoryPoint(positions=list(feedback.desired_positions),
+                                           velocities=list(feedback.desired_velocities))
+        msg.actual = JointTrajectoryPoint(positions=list(feedback.actual_positions),
+                                          velocities=list(feedback.actual_velocities))
+        msg.error = JointTrajectoryPoint(positions=list(feedback.errors))
+        return msg
+
+
+__all__ = ["JointStateFace", "PidFace", "TrajectoryFace", "pid_faced"]
