@@ -41,13 +41,19 @@ json.dump(out, sys.stdout)
 """
 
 
-def _run(setup: Path, op: str, messages: list) -> list:
+def run_with_ros2(setup: Path, script: str, request):
+    """Run the Python ``script`` with ROS 2 sourced, ``request`` as JSON on its standard input; what it writes
+    on its standard output, read as JSON."""
     env = dict(os.environ)
     env.update(sourced_variables(setup))
-    done = subprocess.run([sys.executable, "-c", PROBE], input=json.dumps({"op": op, "messages": messages}),
-                          env=env, capture_output=True, text=True, timeout=120)
+    done = subprocess.run([sys.executable, "-c", script], input=json.dumps(request), env=env, capture_output=True,
+                          text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout)
+
+
+def _run(setup: Path, op: str, messages: list) -> list:
+    return run_with_ros2(setup, PROBE, {"op": op, "messages": messages})
 
 
 def serialize_joint_states(setup: Path, messages: list[dict]) -> list[bytes]:
@@ -61,4 +67,4 @@ def deserialize_joint_states(setup: Path, data: list[bytes]) -> list[dict]:
     return _run(setup, "deserialize", [base64.b64encode(d).decode() for d in data])
 
 
-__all__ = ["deserialize_joint_states", "serialize_joint_states"]
+__all__ = ["deserialize_joint_states", "run_with_ros2", "serialize_joint_states"]
