@@ -117,6 +117,25 @@ def test_the_ros2_joint_states_are_what_a_generic_reader_takes_for_a_ros2_channe
     assert all(m[:4] == b"\x00\x01\x00\x00" for m in messages)  # CDR, little-endian
 
 
+def test_a_generic_ros2_decoder_reads_the_joint_states_from_the_schema_alone(drop_run):
+    """The MCAP project's ROS 2 decoder (no ROS 2 installed): it parses the channel's ros2msg text and decodes
+    each message into the trace's row of its cycle."""
+    from mcap_ros2.decoder import DecoderFactory
+
+    out, _, _ = drop_run
+    trace = load_trace(out / "trace.csv")
+    with open(out / MCAP_FILE, "rb") as f:
+        decoded = [(message.log_time, state) for _, _, message, state in make_reader(
+            f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=[fm.ROS_JOINT_STATES])]
+    assert len(decoded) == len(trace.time_s)
+    assert all(state.name == ["joint1"] and state.header.frame_id == "" for _, state in decoded)
+    assert [s.header.stamp.sec * 1_000_000_000 + s.header.stamp.nanosec for _, s in decoded] == \
+        [t for t, _ in decoded] == [round(t * 1e9) for t in trace.time_s]
+    for quantity in ("position", "velocity", "effort"):
+        values = [getattr(state, quantity)[0] for _, state in decoded]
+        assert np.array_equal(values, trace.joint("joint1", quantity)), quantity
+
+
 def test_values_are_the_traces(drop_run):
     out, _, _ = drop_run
     trace = load_trace(out / "trace.csv")
