@@ -3,7 +3,7 @@
 One set of channels serves both the file (:mod:`jointctl.recording.mcap_record`) and the live
 WebSocket stream (:mod:`jointctl.recording.foxglove_live`). ``/joint_states`` is ROS 2's
 ``sensor_msgs/msg/JointState`` as a ROS 2 bag holds it (CDR messages, a ``ros2msg`` schema:
-:mod:`jointctl.wire.ros2_cdr`), which PlotJuggler and Foxglove decode and name by joint; every other
+:mod:`jointctl.wire.ros2_cdr`), which rclpy reads and PlotJuggler names by joint; every other
 channel is JSON-encoded with a JSON schema: Foxglove recognises its own schemas by name
 (``foxglove.JointStates`` ...), PlotJuggler reads JSON channels field by field, and anyone can read them
 with the ``mcap`` package and ``json``.
