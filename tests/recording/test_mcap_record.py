@@ -26,15 +26,15 @@ WEIGHT = {"name": "weight", "shape": "cylinder", "radius_m": 0.05, "length_m": 0
 
 def read_mcap(path):
     """(summary, {topic: [(log_time, publish_time, decoded message)]}, every log time in file order,
-    metadata, attachments)."""
+    metadata, attachments). JSON messages are decoded, others (ROS 2's CDR) left as bytes."""
     by_topic: dict[str, list] = {}
     order = []
     with open(path, "rb") as f:
         reader = make_reader(f)
         summary = reader.get_summary()
         for _, channel, message in reader.iter_messages(log_time_order=False):
-            by_topic.setdefault(channel.topic, []).append(
-                (message.log_time, message.publish_time, json.loads(message.data)))
+            data = json.loads(message.data) if channel.message_encoding == "json" else message.data
+            by_topic.setdefault(channel.topic, []).append((message.log_time, message.publish_time, data))
             order.append(message.log_time)
         metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
         attachments = {a.name: a for a in reader.iter_attachments()}
@@ -95,8 +95,45 @@ def test_every_channel_is_there_with_one_message_per_trace_row(drop_run):
     assert schemas[fm.OBJECTS].name == "foxglove.SceneUpdate"
     assert schemas[fm.EVENTS].name == "foxglove.Log"
     assert schemas[fm.ROBOT_DESCRIPTION].name == "std_msgs/String"
+    ros = schemas.pop(fm.ROS_JOINT_STATES)
     assert all(s.encoding == "jsonschema" for s in schemas.values())
-    assert all(c.message_encoding == "json" for c in summary.channels.values())
+    assert all(c.message_encoding == "json" for c in summary.channels.values() if c.topic in schemas)
+
+
+def test_the_ros2_joint_states_are_what_a_generic_reader_takes_for_a_ros2_channel(drop_run):
+    """The MCAP registry's ros2 profile: message encoding cdr, schema encoding ros2msg named by the ROS 2 type,
+    the offered QoS in the channel's metadata; every message the size of a one-joint JointState."""
+    out, _, _ = drop_run
+    summary, by_topic, _, _, _ = read_mcap(out / MCAP_FILE)
+    (channel,) = [c for c in summary.channels.values() if c.topic == "/joint_states"]
+    schema = summary.schemas[channel.schema_id]
+    assert (channel.message_encoding, schema.encoding, schema.name) == ("cdr", "ros2msg", "sensor_msgs/msg/JointState")
+    assert schema.data.decode().startswith("# This is a message that holds data to describe the state")
+    assert "\nMSG: std_msgs/Header\n" in schema.data.decode()
+    assert channel.metadata["offered_qos_profiles"].startswith("- history: keep_last\n")
+    messages = [m for _, _, m in by_topic["/joint_states"]]
+    # 4 encapsulation + 8 stamp + 8 empty frame_id + 4 count + 4 + 7 "joint1\0" + 1 pad + 3 x (4 count + 4 pad + 8)
+    assert {len(m) for m in messages} == {84}
+    assert all(m[:4] == b"\x00\x01\x00\x00" for m in messages)  # CDR, little-endian
+
+
+def test_a_generic_ros2_decoder_reads_the_joint_states_from_the_schema_alone(drop_run):
+    """The MCAP project's ROS 2 decoder (no ROS 2 installed): it parses the channel's ros2msg text and decodes
+    each message into the trace's row of its cycle."""
+    from mcap_ros2.decoder import DecoderFactory
+
+    out, _, _ = drop_run
+    trace = load_trace(out / "trace.csv")
+    with open(out / MCAP_FILE, "rb") as f:
+        decoded = [(message.log_time, state) for _, _, message, state in make_reader(
+            f, decoder_factories=[DecoderFactory()]).iter_decoded_messages(topics=[fm.ROS_JOINT_STATES])]
+    assert len(decoded) == len(trace.time_s)
+    assert all(state.name == ["joint1"] and state.header.frame_id == "" for _, state in decoded)
+    assert [s.header.stamp.sec * 1_000_000_000 + s.header.stamp.nanosec for _, s in decoded] == \
+        [t for t, _ in decoded] == [round(t * 1e9) for t in trace.time_s]
+    for quantity in ("position", "velocity", "effort"):
+        values = [getattr(state, quantity)[0] for _, state in decoded]
+        assert np.array_equal(values, trace.joint("joint1", quantity)), quantity
 
 
 def test_values_are_the_traces(drop_run):
@@ -227,7 +264,9 @@ def test_revolute_joints_have_radians_and_newton_metres():
     names = [j.name for j in robot.movable_joints]
     record = fm.RecordFormat(robot, names, ["position"] * 6 + ["velocity"], ["ft_sensor"])
     row = [0.5] + [math.nan] + [0.1] * 6 + [0.2] * 7 + [0.3] * 7 + [0.4] * 7 + [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
-    states, references, joints, wrenches = (json.loads(m) for m in record.row_messages(row, 500_000_000))
+    ros, *json_messages = record.row_messages(row, 500_000_000)
+    states, references, joints, wrenches = (json.loads(m) for m in json_messages)
+    assert ros[4:12] == bytes.fromhex("00000000 0065cd1d")  # header.stamp: 0 s, 500000000 ns (CDR)
     assert joints[names[1]] == {"reference_rad": 0.1, "position_rad": 0.2, "velocity_rad_s": 0.3, "effort_Nm": 0.4}
     assert joints[names[0]]["reference_rad"] is None  # a NaN reference is JSON's null
     assert joints[names[6]] == {"reference_rad_s": 0.1, "position_rad": 0.2, "velocity_rad_s": 0.3, "effort_Nm": 0.4}

@@ -6,7 +6,7 @@ Foxglove (*Layouts* -> *Import from file*) with a ``run.mcap`` or a live ``--fox
 - the 3D view: the URDF from ``/robot_description`` posed by ``/tf`` in the ``world`` frame, the spawned
   objects (``/jointctl/objects``), a 1 m grid;
 - every joint's position [m or rad] with its reference (dashed), one line per joint named by the joint
-  (``/joint_states`` and ``/jointctl/references``: any robot);
+  (``/jointctl/joint_states`` and ``/jointctl/references``: any robot);
 - every joint's effort [N or N·m];
 - the force along z [N] of a force-torque sensor named ``ft_sensor`` (the built-in robots'; edit the path
   for another name: ``/jointctl/wrenches.<sensor>.force_z_N``);

@@ -1,9 +1,12 @@
-"""The channels of ``run.mcap`` and of the live Foxglove stream, and their messages as JSON bytes.
+"""The channels of ``run.mcap`` and of the live Foxglove stream, and their messages as bytes.
 
 One set of channels serves both the file (:mod:`jointctl.recording.mcap_record`) and the live
-WebSocket stream (:mod:`jointctl.recording.foxglove_live`). Every channel is JSON-encoded with a JSON
-schema: Foxglove recognises its own schemas by name (``foxglove.JointStates`` ...), PlotJuggler reads JSON
-channels field by field, and anyone can read them with the ``mcap`` package and ``json``.
+WebSocket stream (:mod:`jointctl.recording.foxglove_live`). ``/joint_states`` is ROS 2's
+``sensor_msgs/msg/JointState`` as a ROS 2 bag holds it (CDR messages, a ``ros2msg`` schema:
+:mod:`jointctl.wire.ros2_cdr`), which rclpy reads and PlotJuggler names by joint; every other
+channel is JSON-encoded with a JSON schema: Foxglove recognises its own schemas by name
+(``foxglove.JointStates`` ...), PlotJuggler reads JSON channels field by field, and anyone can read them
+with the ``mcap`` package and ``json``.
 
 Channels (``time`` is loop time; messages are stamped with it, in the file from zero, live from the
 wall-clock time at loop time zero):
@@ -13,8 +16,11 @@ topic                         schema                      what
 ============================  ==========================  =======================================================
 ``/robot_description``        ``std_msgs/String``         the URDF text (xacro expanded) in ``data``; Foxglove's 3D
                                                           panel draws it (one message, first)
-``/joint_states``             ``foxglove.JointStates``    each joint's position [m or rad], velocity [m/s or
-                                                          rad/s] and effort [N or N·m], every recorded cycle
+``/joint_states``             ``sensor_msgs/msg/          ROS 2's joint state (CDR): ``header.stamp`` the time,
+                              JointState``                ``frame_id`` empty, ``name``, ``position`` [m or rad],
+                                                          ``velocity`` [m/s or rad/s], ``effort`` [N or N·m]
+``/jointctl/joint_states``    ``foxglove.JointStates``    the same as Foxglove's own schema: each joint's
+                                                          position, velocity and effort, every recorded cycle
 ``/jointctl/references``      ``foxglove.JointStates``    each joint's reference: ``position`` for a position
                                                           controller, ``velocity`` for a velocity controller
 ``/jointctl/joints``          ``jointctl.Joints``         the same by joint name with the unit in the field name:
@@ -33,7 +39,7 @@ topic                         schema                      what
                                                           controller failures: one line each
 ============================  ==========================  =======================================================
 
-The per-cycle channels (joint states, references, joints, wrenches) carry one message per row of
+The per-cycle channels (both joint states, references, joints, wrenches) carry one message per row of
 ``trace.csv``; ``/tf`` and ``/jointctl/objects`` at most :data:`SCENE_RATE_HZ`. Non-finite values (a
 joint no controller commands has no reference) are ``null``.
 """
@@ -52,10 +58,14 @@ import numpy as np
 
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.model.robot_model import RobotModel
+from jointctl.wire import ros2_cdr
 
 #: Topics, in the order their channels are made.
 ROBOT_DESCRIPTION = "/robot_description"
-JOINT_STATES = "/joint_states"
+#: ROS 2's ``sensor_msgs/msg/JointState`` (CDR), where ROS 2 robots publish their joint states.
+ROS_JOINT_STATES = "/joint_states"
+#: The joint states as ``foxglove.JointStates`` (JSON).
+JOINT_STATES = "/jointctl/joint_states"
 REFERENCES = "/jointctl/references"
 JOINTS = "/jointctl/joints"
 WRENCHES = "/jointctl/wrenches"
@@ -63,7 +73,7 @@ TF = "/tf"
 OBJECTS = "/jointctl/objects"
 EVENTS = "/jointctl/events"
 #: The channels with one message per recorded cycle (per row of trace.csv).
-PER_CYCLE = (JOINT_STATES, REFERENCES, JOINTS, WRENCHES)
+PER_CYCLE = (ROS_JOINT_STATES, JOINT_STATES, REFERENCES, JOINTS, WRENCHES)
 #: Highest rate of the 3D scene's channels (``/tf``, ``/jointctl/objects``) [Hz of loop time].
 SCENE_RATE_HZ = 100.0
 #: The frame everything is drawn in: the URDF's root link's (the simulated world's).
@@ -77,6 +87,26 @@ LABEL_SIZE_M = 0.1
 WRENCH_AXES = ("force_x_N", "force_y_N", "force_z_N", "torque_x_Nm", "torque_y_Nm", "torque_z_Nm")
 #: What the unit suffixes of jointctl's field names mean (channel metadata).
 UNIT_SUFFIXES = "_m: m, _rad: rad, _m_s: m/s, _rad_s: rad/s, _N: N, _Nm: N·m; time: loop time [s]"
+#: The QoS a ROS 2 bag says ``/joint_states`` was offered with (channel metadata ``offered_qos_profiles``, in
+#: rosbag2's YAML as ROS 2 Jazzy writes it): rclcpp's default, keep the last 10, reliable, volatile; deadline,
+#: lifespan and lease unspecified (0: the middleware's default). ``ros2 bag play`` publishes with it.
+JOINT_STATES_QOS = """\
+- history: keep_last
+  depth: 10
+  reliability: reliable
+  durability: volatile
+  deadline:
+    sec: 0
+    nsec: 0
+  lifespan:
+    sec: 0
+    nsec: 0
+  liveliness: automatic
+  liveliness_lease_duration:
+    sec: 0
+    nsec: 0
+  avoid_ros_namespace_conventions: false
+"""
 
 
 # -- JSON schemas ---------------------------------------------------------------------------------------
@@ -225,10 +255,27 @@ def _name(text: str) -> str:
 
 # -- the channels and the per-cycle messages ------------------------------------------------------------
 @dataclass(frozen=True)
+class SchemaText:
+    """A schema given as text: its ``name``, its ``encoding`` (``ros2msg``) and the ``text``."""
+
+    name: str
+    encoding: str
+    text: str
+
+
+@dataclass(frozen=True)
 class ChannelSpec:
+    """A channel: its topic, its schema (a JSON schema as a dict, or a :class:`SchemaText`), its metadata
+    and its messages' encoding."""
+
     topic: str
-    schema: dict
+    schema: dict | SchemaText
     metadata: dict[str, str]
+    message_encoding: str = "json"
+
+
+#: The schema of :data:`ROS_JOINT_STATES`.
+ROS_JOINT_STATE_SCHEMA = SchemaText(ros2_cdr.JOINT_STATE, ros2_cdr.SCHEMA_ENCODING, ros2_cdr.JOINT_STATE_DEFINITION)
 
 
 class RecordFormat:
@@ -252,6 +299,8 @@ class RecordFormat:
         n = len(self.joint_names)
         self.width = 1 + 4 * n + 6 * len(self.sensor_names)
         ref, pos, vel, eff = (1 + q * n for q in range(4))
+        self._ros_states = ros2_cdr.JointStateEncoder(self.joint_names).encode
+        self._ros_values = slice(pos, eff + n)  # positions, velocities, efforts: JointState's order
         interleaved = [i for j in range(n) for i in (pos + j, vel + j, eff + j)]
         self._states_values = _getter(interleaved)
         self._states = ('{"timestamp":{"sec":%d,"nsec":%d},"joints":[' + ",".join(
@@ -284,6 +333,8 @@ class RecordFormat:
         units_text = json.dumps(joints_units)
         specs = [
             ChannelSpec(ROBOT_DESCRIPTION, _STRING, {"content": "URDF (xacro expanded)"}),
+            ChannelSpec(ROS_JOINT_STATES, ROS_JOINT_STATE_SCHEMA, {"offered_qos_profiles": JOINT_STATES_QOS},
+                        ros2_cdr.MESSAGE_ENCODING),
             ChannelSpec(JOINT_STATES, _JOINT_STATES, {"units": "position m or rad, velocity m/s or rad/s, "
                                                                "effort N or N·m (prismatic or revolute)"}),
             ChannelSpec(REFERENCES, _JOINT_STATES, {
@@ -323,18 +374,21 @@ class RecordFormat:
                        origin_ns: int = 0) -> list[tuple[int, list[bytes]]]:
         """For each row (time first): its stamp [ns] and the per-cycle messages in the order of
         :meth:`cycle_topics`. ``lines`` are the rows as trace.csv writes them (comma-separated
-        :data:`NUMBER` text); given, their numbers are used as they are written (no formatting again)."""
+        :data:`NUMBER` text); given, their numbers are used as they are written (no formatting again; the
+        CDR joint states hold the values of that text)."""
         rows = np.asarray(rows, dtype=float).reshape(-1, self.width)
         stamps = [origin_ns + int(ns) for ns in np.rint(rows[:, 0] * 1e9).astype(np.int64)]
         if lines is None:
             finite = np.isfinite(rows).all(axis=1).tolist()
             return [(ns, self._messages(row, ns, ok)) for ns, row, ok in zip(stamps, rows.tolist(), finite)]
         out = []
+        ros_states, ros_values = self._ros_states, self._ros_values
         for ns, line in zip(stamps, lines):
             values = line.split(",")
+            ros = ros_states(ns, [float(v) for v in values[ros_values]])
             if "n" in line:  # nan, inf: JSON's null
                 values = [v if "n" not in v else "null" for v in values]
-            out.append((ns, self._text_messages(values, ns)))
+            out.append((ns, [ros, *self._text_messages(values, ns)]))
         return out
 
     def row_messages(self, row: Sequence[float], ns: int) -> list[bytes]:
@@ -343,12 +397,13 @@ class RecordFormat:
         return self._messages(row, ns, not total - total)  # NaN when a value is NaN or infinite
 
     def _messages(self, row, ns: int, finite: bool) -> list[bytes]:
+        ros = self._ros_states(ns, row[self._ros_values])
         if not finite:
-            return self._text_messages([_number_text(v) for v in row], ns)
-        return self._format(row, ns, self._states, self._references, self._joints, self._wrenches)
+            return [ros, *self._text_messages([_number_text(v) for v in row], ns)]
+        return [ros, *self._format(row, ns, self._states, self._references, self._joints, self._wrenches)]
 
     def _text_messages(self, texts: Sequence[str], ns: int) -> list[bytes]:
-        """The messages of a row given as JSON number texts."""
+        """The JSON messages of a row given as JSON number texts."""
         return self._format(texts, ns, self._states_text, self._references_text, self._joints_text,
                             self._wrenches_text)
 
@@ -502,7 +557,8 @@ def description_message(urdf: str) -> bytes:
     return json.dumps({"data": urdf}).encode()
 
 
-__all__ = ["EVENTS", "JOINTS", "JOINT_STATES", "OBJECTS", "PER_CYCLE", "REFERENCES", "ROBOT_DESCRIPTION",
-           "SCENE_RATE_HZ", "TF", "WORLD_FRAME", "WRENCHES", "ChannelSpec", "JointUnits", "RecordFormat",
+__all__ = ["EVENTS", "JOINTS", "JOINT_STATES", "JOINT_STATES_QOS", "OBJECTS", "PER_CYCLE", "REFERENCES",
+           "ROBOT_DESCRIPTION", "ROS_JOINT_STATES", "ROS_JOINT_STATE_SCHEMA", "SCENE_RATE_HZ", "TF", "WORLD_FRAME",
+           "WRENCHES", "ChannelSpec", "JointUnits", "RecordFormat", "SchemaText",
            "RobotFrames", "decimation", "description_message", "joint_units", "log_message", "nanoseconds",
            "object_entity", "object_events", "quaternions", "reference_kinds", "scene_update", "stamp"]

@@ -2,7 +2,10 @@
 
 :class:`McapRecorder` writes the channels of :mod:`jointctl.recording.foxglove_messages` (joint states,
 references, the joints by name with units, wrenches, the robot description, TF, the spawned objects and
-the run's events) into an MCAP file with the Foxglove SDK's writer (zstd-compressed chunks, indexed).
+the run's events) into an MCAP file with the Foxglove SDK's writer (zstd-compressed chunks, indexed). The
+JSON channels have JSON schemas; ``/joint_states`` is ROS 2's ``sensor_msgs/msg/JointState`` in CDR with its
+``ros2msg`` schema, a raw channel of the SDK. The header names no profile: ROS 2's (``ros2``) would say that
+every channel is CDR.
 
 It costs the loop almost nothing: the per-cycle messages are made after the run, from the rows
 :class:`~jointctl.recording.trace.TraceRecorder` formats into ``trace.csv`` (the same rows and the very
@@ -27,17 +30,26 @@ from foxglove.mcap import MCAPWriteOptions
 
 from jointctl import __version__
 from jointctl.recording.foxglove_messages import (
-    ERROR, EVENTS, INFO, OBJECTS, WARNING, ROBOT_DESCRIPTION, SCENE_RATE_HZ, TF, RecordFormat, RobotFrames,
-    decimation, description_message, log_message, nanoseconds, object_entity, object_events, reference_kinds,
-    scene_update)
+    ERROR, EVENTS, INFO, OBJECTS, WARNING, ROBOT_DESCRIPTION, SCENE_RATE_HZ, TF, ChannelSpec, RecordFormat,
+    RobotFrames, decimation, description_message, log_message, nanoseconds, object_entity, object_events,
+    reference_kinds, scene_update)
 
 MCAP_FILE = "run.mcap"
 
 
 def open_channels(context, record: RecordFormat) -> dict[str, Any]:
     """One channel per topic of ``record`` on ``context`` (a ``foxglove.Context``)."""
-    return {spec.topic: foxglove.Channel(spec.topic, schema=spec.schema, context=context, metadata=spec.metadata)
-            for spec in record.channels()}
+    return {spec.topic: _channel(context, spec) for spec in record.channels()}
+
+
+def _channel(context, spec: ChannelSpec):
+    """A JSON channel with its JSON schema, or a channel of ``spec.message_encoding`` with a schema given as text
+    (ROS 2's joint states: CDR, ros2msg)."""
+    if isinstance(spec.schema, dict):
+        return foxglove.Channel(spec.topic, schema=spec.schema, context=context, metadata=spec.metadata)
+    schema = foxglove.Schema(name=spec.schema.name, encoding=spec.schema.encoding, data=spec.schema.text.encode())
+    return foxglove.Channel(spec.topic, schema=schema, message_encoding=spec.message_encoding, context=context,
+                            metadata=spec.metadata)
 
 
 def _log_of(channel):
