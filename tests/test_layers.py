@@ -21,7 +21,7 @@ FOUNDATION = ("jointctl", "errors", "validate", "paths", "python_path")
 #: scenarios and may use identification's designs).
 LAYERS = ("wire", "model", "sim", "hardware", "control", "trajectory", "runtime",
           "commands", "metrics", "recording", "visuals",
-          "scenario", "identification", "sweep", "industrial_controller", "clients", "tuning", "ros", "cli")
+          "scenario", "identification", "sweep", "industrial_controller", "clients", "tuning", "ros", "ros2", "cli")
 #: The core: what runs inside the loop; the edges sit on it.
 CORE = ("model", "sim", "hardware", "control", "trajectory", "runtime")
 SIMULATOR_FREE = ("control", "trajectory", "runtime")
@@ -163,6 +163,14 @@ def test_only_the_ros_edge_imports_rospy_and_actionlib():
     wrong = {f"{path.relative_to(PACKAGE)} imports {module}"
              for path in sources() if "ros" not in path.relative_to(PACKAGE).parts[:1]
              for module in imports(path) if module.split(".")[0] in ros_modules}
+    assert not wrong, sorted(wrong)
+
+
+def test_only_the_ros2_edge_imports_rclpy():
+    ros2_modules = {"rclpy", "rosidl_runtime_py", "controller_manager_msgs", "builtin_interfaces", "rcl_interfaces"}
+    wrong = {f"{path.relative_to(PACKAGE)} imports {module}"
+             for path in sources() if "ros2" not in path.relative_to(PACKAGE).parts[:1]
+             for module in imports(path) if module.split(".")[0] in ros2_modules}
     assert not wrong, sorted(wrong)
 
 

@@ -19,3 +19,15 @@ def test_the_cli_sees_a_cpp_talker_on_the_modules_domain(ros2_env):
         assert "/chatter" not in listed, listed
     finally:
         stop_process(talker)
+
+
+def test_a_ros1_command_works_in_a_shell_where_ros2_is_sourced_too(ros2_env):
+    """ROS 2's std_msgs and rosgraph_msgs carry ROS 1's names and come first on a ROS 2 shell's PYTHONPATH:
+    jointctl's ROS 1 edge sets them aside (jointctl.python_path.set_aside_ros2) and imports Debian's."""
+    import sys
+
+    code = ("from jointctl.cli.common import ros_edge; import rosgraph_msgs.msg as m; "
+            "ros_edge('conversions'); import rosgraph_msgs.msg as n; print(n.__file__)")
+    done = subprocess.run([sys.executable, "-c", code], env=ros2_env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip().startswith("/usr/lib/python3/dist-packages/rosgraph_msgs"), done.stdout
