@@ -57,6 +57,7 @@ from jointctl.ros.industrial import IndustrialTopics
 from jointctl.ros.robot_description import Viewers, attach_robot_description
 from jointctl.ros.world_services import attach_world_services
 from jointctl.runtime.clock import WallClockPacer
+from jointctl.runtime.lateness import watch_lateness
 from jointctl.scenario.session import Session
 from jointctl.trajectory.executor import TrajectoryExecutor
 
@@ -206,20 +207,8 @@ class RosNode:
         """``<ns>/loop_lateness`` (std_msgs/Float64MultiArray, once a second): p50, p99 and max, in ms,
         of how late each cycle's end comes against its ideal wall-clock time: the loop's jitter."""
         pub = rospy.Publisher(f"{ns}/loop_lateness", Float64MultiArray, queue_size=1)
-        late: list[float] = []
-        loop = self.session.loop
-        per_report = max(1, round(1.0 / loop.period_s))
-
-        def measure(t: float) -> None:
-            # A cycle cannot start before its due time (the pacer waits for it): this is >= 0.
-            late.append(time.perf_counter() - loop.clock.origin_s - t / self.speed)
-            if len(late) >= per_report:
-                ordered = sorted(late)
-                late.clear()
-                pub.publish(Float64MultiArray(data=[1e3 * ordered[len(ordered) // 2],
-                                                    1e3 * ordered[int(0.99 * len(ordered))], 1e3 * ordered[-1]]))
-
-        self.session.loop.add_observer(measure)
+        watch_lateness(self.session.loop, lambda *ms: pub.publish(Float64MultiArray(data=list(ms))),
+                       lambda: self.speed)
 
     def _sensor_publishers(self) -> None:
         session = self.session

@@ -10,7 +10,9 @@ What a ROS 2 user's tools expect of a ros2_control robot, with jointctl's simula
 - from the node ``/jointctl_<robot>`` (robot_state_publisher's part): ``/robot_description`` (std_msgs/msg/String,
   reliable, transient local: a late subscriber gets it), ``/tf`` (tf2_msgs/msg/TFMessage: every URDF joint's
   parent -> child transform, from the robot's own kinematics, at ``tf_rate_hz``), and with ``sim_time``
-  ``/clock`` (rosgraph_msgs/msg/Clock, loop time, every cycle) with ``use_sim_time`` set on jointctl's nodes.
+  ``/clock`` (rosgraph_msgs/msg/Clock, loop time, every cycle) with ``use_sim_time`` set on jointctl's nodes;
+  ``~/loop_lateness`` (std_msgs/msg/Float64MultiArray, once a second: p50, p99, max [ms] of how late the loop's
+  cycles end against their ideal wall-clock times, :mod:`jointctl.runtime.lateness`).
 
 Stamps: loop time on simulated time, else the wall clock at loop time zero plus loop time. The loop runs paced
 to the wall clock in the calling thread; rclpy's executor runs the callbacks on threads of its own until
@@ -31,7 +33,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from geometry_msgs.msg import TransformStamped
-from std_msgs.msg import String
+from std_msgs.msg import Float64MultiArray, String
 from tf2_msgs.msg import TFMessage
 
 from jointctl.control.joint_state_controller import JointStateController
@@ -41,6 +43,7 @@ from jointctl.ros2.controller_manager import ControllerManagerServices
 from jointctl.ros2.controllers import JointStateFace, PidFace, TrajectoryFace, pid_faced
 from jointctl.ros2.conversions import time_msg
 from jointctl.runtime.clock import WallClockPacer
+from jointctl.runtime.lateness import watch_lateness
 from jointctl.scenario.session import Session
 from jointctl.trajectory.executor import TrajectoryExecutor
 
@@ -76,6 +79,7 @@ class Ros2Robot:
     def __init__(self, session: Session, *, sim_time: bool = False, state_rate_hz: float = 50.0,
                  tf_rate_hz: float = 50.0) -> None:
         self.session = session
+        self.speed = 1.0
         self.clock = LoopClock(session.loop, sim_time)
         overrides = [Parameter("use_sim_time", value=True)] if sim_time else []
         self.nodes: list[Node] = []
@@ -104,6 +108,9 @@ class Ros2Robot:
         self._frames = RobotFrames(session.robot, session.hardware.joint_names)
         self._tf = robot_node.create_publisher(TFMessage, "/tf", 100)
         robot_node.create_timer(1.0 / tf_rate_hz, self._publish_tf)
+        lateness = robot_node.create_publisher(Float64MultiArray, "~/loop_lateness", 1)
+        watch_lateness(session.loop, lambda *ms: lateness.publish(Float64MultiArray(data=list(ms))),
+                       lambda: self.speed)
         manager = session.manager
         manager.add_failure_listener(
             lambda f: robot_node.get_logger().error(f"controller {f.controller} {f.error().message}"))
@@ -127,6 +134,7 @@ class Ros2Robot:
     def spin(self, speed: float = 1.0) -> None:
         """Run the loop paced to the wall clock and the callbacks beside it, until SIGINT/SIGTERM."""
         loop = self.session.loop
+        self.speed = speed
         loop.clock = WallClockPacer(speed)
         executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
         for made in self.nodes:
