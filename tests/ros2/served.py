@@ -15,12 +15,13 @@ PROBE = Path(__file__).with_name("probe.py")
 
 
 class ServedRobot:
-    """``jointctl serve ROBOT --ros2 ARGS...`` in ``env`` (a child process; its output in ``log``)."""
+    """``jointctl COMMAND ROBOT --ros2 ARGS...`` (``serve``, or ``tune``) in ``env`` (a child process; its output in
+    ``log``)."""
 
-    def __init__(self, env: dict, log: Path, robot: str, *args: str) -> None:
+    def __init__(self, env: dict, log: Path, robot: str, *args: str, command: str = "serve") -> None:
         self.env, self.log = env, log
         self._out = open(log, "w")
-        self.process = subprocess.Popen([sys.executable, "-m", "jointctl.cli", "serve", robot, "--ros2", *args],
+        self.process = subprocess.Popen([sys.executable, "-m", "jointctl.cli", command, robot, "--ros2", *args],
                                         env=env, stdout=self._out, stderr=subprocess.STDOUT)
 
     def wait_up(self, controllers: list[str]) -> str:

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
-from jointctl.cli.common import foxglove_argument, live_scenario, live_target_arguments, start_foxglove
+from jointctl.cli.common import foxglove_argument, live_scenario, live_target_arguments, ros2_edge, start_foxglove
 from jointctl.errors import JointCtlError
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
@@ -22,6 +23,8 @@ def add_parsers(sub) -> None:
                       help="allow --host other than loopback: anyone reaching it can move the robot")
     tune.add_argument("--out", type=Path, default=Path("out/tune"), help="where 'Write gains YAML' writes")
     tune.add_argument("--view", action="store_true", help="also show the robot in MuJoCo's viewer (a desktop window)")
+    tune.add_argument("--ros2", action="store_true",
+                      help="also serve the robot on ROS 2 as serve --ros2 does (its setup.bash sourced in this shell)")
     foxglove_argument(tune)
     tune.set_defaults(handler=_tune)
 
@@ -55,9 +58,15 @@ def _tune(args: argparse.Namespace) -> int:
         viewer = LiveViewer(tuner.session.world, tuner.loop, stop_when_closed=False)
         tuner.loop.add_observer(viewer)
     live = None
+    ros2 = contextlib.nullcontext()
+    if args.ros2:
+        ros2 = ros2_edge("node").on_ros2(tuner.session, speed=args.speed)
     try:
         live = start_foxglove(args, tuner.session, host=args.host)
-        serve_tuning(tuner, host=args.host, port=args.port, speed=args.speed)
+        with ros2 as robot:
+            if robot is not None:
+                robot.start_callbacks()
+            serve_tuning(tuner, host=args.host, port=args.port, speed=args.speed)
     finally:
         if live is not None:
             live.stop()

@@ -21,6 +21,7 @@ SIGINT or SIGTERM stops both.
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 import threading
@@ -131,25 +132,36 @@ class Ros2Robot:
             message.transforms.append(transform)
         self._tf.publish(message)
 
+    def start_callbacks(self) -> None:
+        """Spin rclpy's executor on threads of its own: the callbacks run from now on (the loop runs elsewhere)."""
+        self._executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
+        for made in self.nodes:
+            self._executor.add_node(made)
+        threading.Thread(target=_spin, args=(self._executor, self.nodes[0].get_logger()), daemon=True,
+                         name="jointctl-ros2-executor").start()
+        self.clock.start()
+
+    def close(self) -> None:
+        """Stop the callbacks and take the nodes off the graph."""
+        executor, self._executor = getattr(self, "_executor", None), None
+        if executor is not None:
+            executor.shutdown(timeout_sec=2.0)
+        nodes, self.nodes = self.nodes, []
+        for made in nodes:
+            made.destroy_node()
+
     def spin(self, speed: float = 1.0) -> None:
         """Run the loop paced to the wall clock and the callbacks beside it, until SIGINT/SIGTERM."""
         loop = self.session.loop
         self.speed = speed
         loop.clock = WallClockPacer(speed)
-        executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
-        for made in self.nodes:
-            executor.add_node(made)
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, lambda *_: loop.request_stop())
-        spinner = threading.Thread(target=_spin, args=(executor, self.nodes[0].get_logger()), daemon=True, name="jointctl-ros2-executor")
-        spinner.start()
-        self.clock.start()
+        self.start_callbacks()
         try:
             loop.run()
         finally:
-            executor.shutdown(timeout_sec=2.0)
-            for made in self.nodes:
-                made.destroy_node()
+            self.close()
 
 
 def _spin(executor, logger) -> None:
@@ -165,15 +177,26 @@ def _spin(executor, logger) -> None:
 
 def serve(session: Session, *, sim_time: bool = False, speed: float = 1.0) -> None:
     """Bring the session up on ROS 2 (the DDS domain of ``ROS_DOMAIN_ID``) and run until stopped."""
+    with on_ros2(session, sim_time=sim_time) as robot:
+        robot.spin(speed)
+
+
+@contextlib.contextmanager
+def on_ros2(session: Session, *, sim_time: bool = False, speed: float = 1.0):
+    """rclpy up and the session's :class:`Ros2Robot` made (callbacks not started yet), then everything down."""
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     rclpy.init(args=None, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    robot = None
     try:
         robot = Ros2Robot(session, sim_time=sim_time)
+        robot.speed = speed
         names = ", ".join(f"/{n.get_name()}" for n in robot.nodes)
         robot.nodes[0].get_logger().info(f"jointctl: {session.robot.name} up on ROS 2 as {names}")
-        robot.spin(speed)
+        yield robot
     finally:
+        if robot is not None:
+            robot.close()
         rclpy.try_shutdown()
 
 
-__all__ = ["LoopClock", "Ros2Robot", "serve"]
+__all__ = ["LoopClock", "Ros2Robot", "on_ros2", "serve"]
