@@ -125,6 +125,11 @@ REFUSALS = [
 ]
 
 
+PID = {"controller_manager": {"ros__parameters": {"pid": {"type": "pid_controller/PidController"}}},
+       "pid": {"ros__parameters": {"dof_names": ["joint1"], "gains": {"joint1": {"p": 400, "antiwindup": True}}}}}
+REFUSALS.append(("an integer gain", PID, "pid.ros__parameters.gains.joint1.p", 400))
+
+
 @pytest.mark.parametrize(("case", "tree", "field", "value"), REFUSALS, ids=[r[0] for r in REFUSALS])
 def test_a_bad_file_is_refused_naming_the_field(case, tree, field, value, tmp_path):
     with pytest.raises(ConfigError) as info:
@@ -158,3 +163,14 @@ def test_an_unknown_type_is_refused_where_the_manager_declares_it(write_yaml):
     with pytest.raises(ConfigError) as info:
         manager.load("effort_controller")
     assert info.value.field == "controller_manager.ros__parameters.effort_controller.type"
+
+
+def test_an_integer_gain_set_by_jointctl_is_taken(write_yaml):
+    # Refused in the file (ros2_control_node refuses it: "setting it to {integer} is not allowed"); a --set value
+    # is jointctl's own.
+    tree = copy.deepcopy(PID)
+    tree["pid"]["ros__parameters"]["gains"]["joint1"]["p"] = 400.0
+    tree["pid"]["ros__parameters"].update(command_interface="effort", reference_and_state_interfaces=["position"])
+    manager = ControllerManager(FakeHardware(("joint1", "joint2")), TWO_JOINTS)
+    manager.load_file(write_yaml(tree), {"pid.gains.joint1.p": 800})
+    assert manager.load("pid").gains[0].p == 800.0

@@ -31,6 +31,10 @@ parameters are in the file (``pid_controller.ros__parameters.gains.joint1.p``) f
   refused. A controller's ``params_file`` (a path, or a list, relative to the file's folder) is read
   first and its own section applied over it; ``fallback_controllers`` is refused (jointctl's failure
   policy deactivates a failing controller's chain, it starts nothing in its place).
+- ROS 2 refuses an integer for a parameter it declares a double (``p: 400`` for ``p: 400.0``: "parameter
+  'gains.joint1.p' has invalid type ... setting it to {integer} is not allowed", seen with Jazzy's
+  ros2_control_node); so does jointctl, in the file, for the double parameters of the types in
+  :data:`DOUBLE_PARAMETERS`. (Values given with ``--set`` are jointctl's and are not checked so.)
 - Every controller's parameters of ROS 2's controller_interface are taken out before the controller
   reads its own: ``update_rate`` (0, or the manager's: jointctl runs every controller at the manager's
   rate), ``is_async`` (false: one loop, one thread), ``thread_priority`` and ``use_sim_time`` (no effect).
@@ -61,6 +65,15 @@ MANAGER_PARAMETERS = ("update_rate", "hardware_components_initial_state", "diagn
 DEFAULT_UPDATE_RATE_HZ = 100
 #: Keys of a controller's declaration in the manager's parameters.
 DECLARATION_KEYS = ("type", "params_file", "fallback_controllers")
+#: The parameters ros2_controllers declares doubles, by controller type, as dotted patterns (``*``: one name).
+DOUBLE_PARAMETERS: Mapping[str, tuple[str, ...]] = {
+    "pid_controller/PidController": tuple(f"gains.*.{k}" for k in ("p", "i", "d", "i_clamp_max", "i_clamp_min",
+                                                                   "feedforward_gain")),
+    "joint_trajectory_controller/JointTrajectoryController": (
+        *(f"gains.*.{k}" for k in ("p", "i", "d", "i_clamp", "ff_velocity_scale")), "constraints.goal_time",
+        "constraints.stopped_velocity_tolerance", "constraints.*.trajectory", "constraints.*.goal",
+        "action_monitor_rate", "cmd_timeout"),
+}
 #: Parameters every ROS 2 controller has (controller_interface), taken out before the controller reads its own.
 GENERIC_PARAMETERS = ("update_rate", "is_async", "thread_priority", "use_sim_time")
 
@@ -179,9 +192,24 @@ def read_ros2_controllers(tree: Mapping[str, Any], source: str | None = None, *,
             raise ConfigError(f"the type is declared in {where}", source=source, field=f"{fields[name]}.type",
                               value=parameters["type"])
         _take_generic(parameters, rate, source, fields[name])
+        _check_doubles(parameters, DOUBLE_PARAMETERS.get(type_name, ()), source, fields[name])
         controllers[name] = {"type": type_name, **parameters}
         type_fields[name] = f"{dwhere}.type"
     return Ros2ControllerFile(source, manager_key, rate, controllers, fields, type_fields)
+
+
+def _check_doubles(parameters: Mapping[str, Any], patterns: tuple[str, ...], source: str | None, where: str,
+                   prefix: tuple[str, ...] = ()) -> None:
+    """Refuse an integer where ``patterns`` name a double (ROS 2 refuses it when the controller loads)."""
+    for key, value in parameters.items():
+        path = (*prefix, str(key))
+        if isinstance(value, Mapping):
+            _check_doubles(value, patterns, source, where, path)
+        elif isinstance(value, int) and not isinstance(value, bool) and any(
+                len(path) == len(parts) and all(p in ("*", k) for p, k in zip(parts, path))
+                for parts in (pattern.split(".") for pattern in patterns)):
+            raise ConfigError(f"ROS 2 declares it a double and refuses an integer: write {value}.0", source=source,
+                              field=".".join((where, *path)), value=value)
 
 
 def _take_generic(parameters: dict[str, Any], rate: int, source: str | None, where: str) -> None:
@@ -245,5 +273,5 @@ def controller_entries(tree: Any) -> dict[str, str]:
     return {str(k): v["type"] for k, v in body.items() if isinstance(v, Mapping) and "type" in v}
 
 
-__all__ = ["DEFAULT_UPDATE_RATE_HZ", "MANAGER_NODE", "ROS_PARAMETERS", "Ros2ControllerFile", "controller_entries",
+__all__ = ["DEFAULT_UPDATE_RATE_HZ", "DOUBLE_PARAMETERS", "MANAGER_NODE", "ROS_PARAMETERS", "Ros2ControllerFile", "controller_entries",
            "is_ros2_parameters", "node_name", "read_ros2_controllers"]
