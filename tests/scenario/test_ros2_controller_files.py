@@ -83,3 +83,57 @@ def test_a_step_under_pid_controller_is_control_toolboxs_pid_on_the_piston(write
     assert np.max(np.abs(data["joint1position"] - np.array(expected))) < 1e-9
     # At rest the P term holds the load: the piston sits m·g/p below its reference.
     assert data["joint1position"][-1] == pytest.approx(-0.5 - M_KG * G / P, abs=1e-6)
+
+
+JTC_FILE = """
+controller_manager:
+  ros__parameters:
+    update_rate: 1000
+    joint_state_broadcaster: {type: joint_state_broadcaster/JointStateBroadcaster}
+    joint_trajectory_controller: {type: joint_trajectory_controller/JointTrajectoryController}
+joint_trajectory_controller:
+  ros__parameters:
+    joints: [joint1]
+    command_interfaces: [effort]
+    state_interfaces: [position, velocity]
+    gains: {joint1: {p: 400.0, d: 40.0}}
+"""
+
+
+@pytest.mark.slow
+def test_a_goal_under_joint_trajectory_controller_is_its_pid_on_the_linear_path_from_where_the_piston_is(
+        write_scenario, tmp_path):
+    controllers = tmp_path / "jtc.yaml"
+    controllers.write_text(JTC_FILE)
+    t0, q_goal, duration = 0.2, -0.3, 1.0
+    goal = {"joint_names": ["joint1"], "points": [{"positions": [q_goal], "time_from_start": duration}]}
+    scenario = ros2_step(write_scenario, controller_file=str(controllers), commands={}, duration_s=3.0,
+                         start_controllers=["joint_state_broadcaster", "joint_trajectory_controller"],
+                         goals=[{"controller": "joint_trajectory_controller", "at_s": t0, "trajectory": goal}])
+    rows = []
+    with Session(scenario) as session:
+        hw, references = session.hardware, session.manager.references
+        session.loop.add_observer(lambda t: rows.append((t, hw.position[0], hw.velocity[0], references[0])))
+        session.run()
+    time, position, velocity, reference = (np.array(column) for column in zip(*rows))
+    h, d = 0.001, 40.0
+    start = int(round(t0 / h))
+    q0 = position[start]  # the measured position the trajectory starts from
+    slope = (q_goal - q0) / duration
+    q, v = -0.2, 0.0
+    expected = []
+    for k, t in enumerate(time):
+        desired = reference[k]
+        if k >= start:  # the linear path from the measured position, then its last point held
+            assert desired == pytest.approx(q0 + slope * min(t - t0, duration), abs=1e-12)
+        v_desired = slope if start <= k < start + round(duration / h) else 0.0
+        u = P * (desired - q) + d * (v_desired - v)
+        expected.append(q)
+        q, v = euler(q, v, min(LIMIT_N, max(-LIMIT_N, u)) - M_KG * G, h, 1)
+    assert np.max(np.abs(position - np.array(expected))) < 1e-9
+    # Done once the piston moves slower than stopped_velocity_tolerance after the last point (no goal tolerance).
+    (handle,) = session.goals
+    end = start + round(duration / h)
+    stopped = end + int(np.argmax(np.abs(velocity[end:]) <= 0.01))
+    assert handle.result.error_code == 0 and handle.result.time_s == pytest.approx(time[stopped])
+    assert position[-1] == pytest.approx(q_goal - M_KG * G / P, abs=1e-6)  # held by the P term

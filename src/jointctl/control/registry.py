@@ -32,6 +32,8 @@ BUILTIN_TYPES: Mapping[str, str] = {
         "jointctl.control.forward_command_controller:ForwardCommandController",
     "effort_controllers/JointGroupEffortController":
         "jointctl.control.forward_command_controller:JointGroupEffortController",
+    "joint_trajectory_controller/JointTrajectoryController":
+        "jointctl.trajectory.joint_trajectory_controller:JointTrajectoryController",
 }
 
 _PLUGINS: dict[str, type[Controller]] = {}
