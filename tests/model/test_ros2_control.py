@@ -11,7 +11,8 @@ from jointctl.errors import ModelError
 from jointctl.model.loader import load_robot_model
 from jointctl.model.urdf_parser import parse_urdf
 
-CONTROL_DEMO = Path("/work/shared/ros2/control_demo/robot.urdf")
+#: The reference's demo (robot.urdf and controllers.yaml that Jazzy's ros2_control_node loads on mock hardware).
+CONTROL_DEMO = Path(__file__).resolve().parent / "data" / "control_demo" / "robot.urdf"
 SOURCE = "arm.urdf"
 
 ROBOT = """<?xml version="1.0"?>
