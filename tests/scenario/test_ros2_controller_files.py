@@ -137,3 +137,12 @@ def test_a_goal_under_joint_trajectory_controller_is_its_pid_on_the_linear_path_
     stopped = end + int(np.argmax(np.abs(velocity[end:]) <= 0.01))
     assert handle.result.error_code == 0 and handle.result.time_s == pytest.approx(time[stopped])
     assert position[-1] == pytest.approx(q_goal - M_KG * G / P, abs=1e-6)  # held by the P term
+
+
+def test_an_analysis_of_a_joint_a_ros2_type_commands_is_refused_before_the_run(write_scenario, tmp_path):
+    from jointctl.scenario.run import run_scenario
+
+    scenario = ros2_step(write_scenario, analysis={"type": "step_response", "joint": "joint1"})
+    with pytest.raises(ConfigError) as info:
+        run_scenario(scenario, tmp_path / "out")
+    assert info.value.field == "analysis.joint" and "pid_controller" in str(info.value)
