@@ -102,3 +102,17 @@ def test_a_description_with_its_own_ros2_control_gets_no_second_one(tmp_path):
     assert "jointctl's simulated robot stands in for the hardware plugin my_robot/Driver" in err
     pid = read_yaml(tmp_path / "arm" / "config" / "ros2_controllers.yaml")["pid_controller"]["ros__parameters"]
     assert pid["dof_names"] == ["shoulder", "elbow"]
+
+
+def test_a_run_says_what_the_simulation_stood_in_for(written, tmp_path):
+    from jointctl.scenario.run import run_scenario
+
+    robot = written / "arm" / "urdf" / "planar_arm.ros2_control.urdf.xacro"
+    scenario = load_scenario(written / "arm" / "scenarios" / "step_shoulder.yaml",
+                             [f"robot={robot}", f"controller_file={written / 'arm' / 'config' / 'ros2_controllers.yaml'}",
+                              "start_controllers=[joint_state_broadcaster]", "commands={}", "analysis=null",
+                              "duration_s=0.01"])
+    metrics = run_scenario(scenario, tmp_path / "out", mcap=False)
+    assert metrics["stands_in_for"] == [
+        "ros2_control system 'planar_arm_system': jointctl's simulated robot stands in for the hardware plugin "
+        "mock_components/GenericSystem (joints shoulder (effort), elbow (effort))"]
