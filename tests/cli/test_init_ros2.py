@@ -109,7 +109,8 @@ def test_a_run_says_what_the_simulation_stood_in_for(written, tmp_path):
 
     robot = written / "arm" / "urdf" / "planar_arm.ros2_control.urdf.xacro"
     scenario = load_scenario(written / "arm" / "scenarios" / "step_shoulder.yaml",
-                             [f"robot={robot}", f"controller_file={written / 'arm' / 'config' / 'ros2_controllers.yaml'}",
+                             [f"robot={robot}",
+                              f"controller_file={written / 'arm' / 'config' / 'ros2_controllers.yaml'}",
                               "start_controllers=[joint_state_broadcaster]", "commands={}", "analysis=null",
                               "duration_s=0.01"])
     metrics = run_scenario(scenario, tmp_path / "out", mcap=False)

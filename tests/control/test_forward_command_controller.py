@@ -26,7 +26,8 @@ def manager_with(write_yaml, controller_type: str, parameters: dict) -> Controll
 
 
 @pytest.mark.parametrize(("controller_type", "parameters"), [
-    ("forward_command_controller/ForwardCommandController", {"joints": ["joint2", "joint1"], "interface_name": "effort"}),
+    ("forward_command_controller/ForwardCommandController",
+     {"joints": ["joint2", "joint1"], "interface_name": "effort"}),
     ("effort_controllers/JointGroupEffortController", {"joints": ["joint2", "joint1"]}),
 ])
 def test_commands_are_written_every_cycle_in_joint_order_from_the_first(write_yaml, controller_type, parameters):
@@ -46,7 +47,8 @@ def test_commands_are_written_every_cycle_in_joint_order_from_the_first(write_ya
 
 @pytest.mark.parametrize("values", [[1.0], [1.0, 2.0, 3.0], [1.0, math.nan], [math.inf, 1.0], ["1", 2.0], [True, 1.0]])
 def test_a_wrong_count_or_a_value_that_is_not_a_finite_number_is_refused(write_yaml, values):
-    manager = manager_with(write_yaml, "effort_controllers/JointGroupEffortController", {"joints": ["joint1", "joint2"]})
+    manager = manager_with(write_yaml, "effort_controllers/JointGroupEffortController",
+                           {"joints": ["joint1", "joint2"]})
     manager.start(["forward"])
     forward = manager.controller("forward")
     forward.set_commands([1.0, 2.0])

@@ -141,8 +141,9 @@ REFUSALS = [
     ("initial value not a number", _one(joint='<joint name="shoulder"><state_interface name="position">'
                                               '<param name="initial_value">up</param></state_interface></joint>'),
      "ros2_control[S].joint[shoulder].state_interface[position].initial_value", "up"),
-    ("initial value outside the limits", _one(joint='<joint name="shoulder"><state_interface name="position">'
-                                                    '<param name="initial_value">2.0</param></state_interface></joint>'),
+    ("initial value outside the limits",
+     _one(joint='<joint name="shoulder"><state_interface name="position">'
+                '<param name="initial_value">2.0</param></state_interface></joint>'),
      "ros2_control[S].joint[shoulder].state_interface[position].initial_value", 2.0),
     ("min above max", _one(joint='<joint name="shoulder"><command_interface name="effort"><param name="min">5</param>'
                                  '<param name="max">-5</param></command_interface></joint>'),

@@ -33,7 +33,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_msgs.msg import String
 rclpy.init()
 node = rclpy.create_node("robot_description_publisher")
-pub = node.create_publisher(String, "/robot_description", QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+pub = node.create_publisher(String, "/robot_description", latched)
 pub.publish(String(data=open(sys.argv[1]).read()))
 rclpy.spin(node)
 """

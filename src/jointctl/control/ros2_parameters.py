@@ -273,5 +273,6 @@ def controller_entries(tree: Any) -> dict[str, str]:
     return {str(k): v["type"] for k, v in body.items() if isinstance(v, Mapping) and "type" in v}
 
 
-__all__ = ["DEFAULT_UPDATE_RATE_HZ", "DOUBLE_PARAMETERS", "MANAGER_NODE", "ROS_PARAMETERS", "Ros2ControllerFile", "controller_entries",
+__all__ = ["DEFAULT_UPDATE_RATE_HZ", "DOUBLE_PARAMETERS", "MANAGER_NODE", "ROS_PARAMETERS", "Ros2ControllerFile",
+           "controller_entries",
            "is_ros2_parameters", "node_name", "read_ros2_controllers"]

@@ -185,9 +185,9 @@ def _ros2_description(robot_name: str, included: str, loops) -> str:
              f'  <xacro:include filename="{included}"/>',
              f'  <ros2_control name="{robot_name}_system" type="system">',
              "    <hardware>",
-             "      <!-- The robot's hardware plugin (its driver; gz_ros2_control/GazeboSimSystem in Gazebo). jointctl's",
-             f"           simulated robot stands in for it; {MOCK_PLUGIN} lets ros2_control_node load the",
-             "           files as they are. -->",
+             "      <!-- The robot's hardware plugin (its driver; gz_ros2_control/GazeboSimSystem in Gazebo).",
+             f"           jointctl's simulated robot stands in for it; {MOCK_PLUGIN} lets",
+             "           ros2_control_node load the files as they are. -->",
              f"      <plugin>{MOCK_PLUGIN}</plugin>",
              "    </hardware>"]
     for loop in loops:
