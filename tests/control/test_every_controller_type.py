@@ -10,6 +10,7 @@ import pytest
 import yaml
 
 from jointctl.control.registry import controller_types
+from jointctl.control.ros2_parameters import controller_entries
 from jointctl.paths import robots_dir
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import scenario_for_robot
@@ -36,8 +37,8 @@ def types_used(robot: str) -> set[type]:
     manifest = yaml.safe_load((robots_dir() / robot / "robot.yaml").read_text())
     used = set()
     for path in manifest["controllers"].values():
-        for namespace in yaml.safe_load((robots_dir() / robot / path).read_text()).values():
-            used.update(registry[c["type"]] for c in namespace.values() if isinstance(c, dict) and "type" in c)
+        used.update(registry[t] for t in controller_entries(yaml.safe_load((robots_dir() / robot / path).read_text()))
+                    .values())
     return used
 
 

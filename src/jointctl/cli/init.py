@@ -11,7 +11,8 @@ from jointctl.errors import JointCtlError
 
 def add_parsers(sub) -> None:
     init = sub.add_parser("init", help="write a robot folder for your own URDF/xacro: robot.yaml, a ros_control YAML "
-                                       "with starting gains from the model, a step scenario")
+                                       "and a ROS 2 controller_manager YAML with starting gains from the model, the "
+                                       "description with its <ros2_control>, a step scenario")
     init.add_argument("description", help="the robot's .urdf or .xacro")
     init.add_argument("--out", type=Path, help="the folder to write (default: ./<robot name>)")
     init.add_argument("--bandwidth-hz", type=float, default=2.0,
@@ -36,7 +37,7 @@ def _init(args: argparse.Namespace) -> int:
     loops = starting_gains(robot, bandwidth_hz=args.bandwidth_hz, zeta=args.zeta, gravity_m_s2=(0.0, 0.0, args.gravity))
     out = args.out or Path(robot.name)
     files = write_robot_folder(description, out, robot.name, loops, bandwidth_hz=args.bandwidth_hz, zeta=args.zeta,
-                               gravity_z_m_s2=args.gravity, force=args.force)
+                               gravity_z_m_s2=args.gravity, force=args.force, ros2_description=not robot.ros2_control)
     print(f"{'joint':<16} {'home':>8} {'inertia':>10} {'gravity':>9} {'limit':>8} {'p':>10} {'d':>9} {'Hz':>6}")
     for loop in loops:
         print(f"{loop.joint:<16} {loop.home:>8.4g} {loop.inertia:>10.4g} {loop.gravity_load:>9.4g} "
@@ -45,5 +46,7 @@ def _init(args: argparse.Namespace) -> int:
             print(f"  {loop.joint}: {loop.note}")
     for path in files.values():
         print(f"wrote {path}", file=sys.stderr)
+    for component in robot.ros2_control:
+        print(f"{description}: {component.stand_in()}", file=sys.stderr)
     print(f"next: jointctl run {files['scenario']}", file=sys.stderr)
     return 0

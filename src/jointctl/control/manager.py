@@ -9,7 +9,10 @@ are controllers, each with a ros_control ``type``::
         joint: joint1
         pid: {p: 400.0, i: 0.0, d: 0.0}
 
-A file without the namespace level (controllers at the top) loads too.
+A file without the namespace level (controllers at the top) loads too, and so does a ROS 2
+controller_manager parameters file (``controller_manager: ros__parameters: {update_rate, NAME: {type}}``
+and ``NAME: ros__parameters: {...}``, told apart by its ``ros__parameters``; read by
+:mod:`jointctl.control.ros2_parameters`).
 Loading builds and configures a controller; starting it checks that no
 running controller claims the same ``(joint, interface)``.
 """
@@ -30,6 +33,7 @@ from jointctl.control.context import ControlContext
 from jointctl.control.controller import Controller
 from jointctl.control.params import Params
 from jointctl.control.registry import controller_types
+from jointctl.control.ros2_parameters import is_ros2_parameters, read_ros2_controllers
 from jointctl.errors import ConfigError, ControllerError, ControllerFailed
 from jointctl.hardware.interface import HardwareInterface
 from jointctl.hardware.loan import HardwareLoan
@@ -92,6 +96,16 @@ def read_yaml(path: str | Path) -> Any:
         raise ConfigError(f"not valid YAML: {where}{problem}", source=str(path)) from None
 
 
+def ros2_update_rate(path: str | Path) -> tuple[int, str] | None:
+    """(the controller_manager's ``update_rate`` [Hz], its field) of a ROS 2 controller file; None for a
+    ros_control file."""
+    tree = read_yaml(path)
+    if not is_ros2_parameters(tree):
+        return None
+    ros2 = read_ros2_controllers(tree, str(path), base_dir=Path(path).parent, read=read_yaml)
+    return ros2.update_rate_hz, ros2.update_rate_field
+
+
 def set_dotted(tree: dict, dotted: str, value: Any, *, source: str | None, field_prefix: str = "") -> None:
     """Set ``tree[a][b][c] = value`` for ``dotted = "a.b.c"``, creating mappings on the way."""
     keys = dotted.split(".")
@@ -147,11 +161,15 @@ class ControllerManager:
         self.types = controller_types() if types is None else dict(types)
         self.context = ControlContext(hardware, robot, gravity_m_s2)
         self._definitions: dict[str, Params] = {}
+        #: Where a ROS 2 file declares each controller's type (its controller_manager's parameters).
+        self._type_fields: dict[str, str] = {}
         self._loaded: dict[str, Controller] = {}
         self._active: list[Controller] = []
         #: The running controllers' update methods, in start order (read by the loop every cycle).
         self.update_calls: tuple = ()
         self.namespace: str | None = None
+        #: A ROS 2 file's controller_manager ``update_rate`` [Hz] (None for a ros_control file).
+        self.update_rate_hz: int | None = None
         #: Per hardware joint, the reference of the controller commanding it (NaN when none).
         self.references: list[float] = self.context.references
         #: Every controller failure so far, in order.
@@ -172,8 +190,15 @@ class ControllerManager:
         if not isinstance(tree, dict) or not tree:
             raise ConfigError("must be a mapping of controllers (under a robot namespace)",
                               source=source, value=tree)
-        namespace, controllers = self._split_namespace(tree, source)
-        controllers = copy.deepcopy(controllers)
+        if is_ros2_parameters(tree):
+            ros2 = read_ros2_controllers(tree, source, base_dir=Path(path).parent, read=read_yaml)
+            self._type_fields.update(ros2.type_fields)
+            namespace, controllers, fields = None, copy.deepcopy(ros2.controllers), ros2.fields
+            self.update_rate_hz = ros2.update_rate_hz
+        else:
+            namespace, controllers = self._split_namespace(tree, source)
+            controllers = copy.deepcopy(controllers)
+            fields = {name: f"{namespace}.{name}" if namespace else name for name in controllers}
         prefix = namespace or ""
         for dotted, value in (overrides or {}).items():
             name = dotted.split(".", 1)[0]
@@ -183,8 +208,7 @@ class ControllerManager:
                                   field=".".join(filter(None, [prefix, dotted])), value=name)
             set_dotted(controllers, dotted, value, source=source, field_prefix=prefix)
         for name, definition in controllers.items():
-            field = f"{prefix}.{name}" if prefix else name
-            self._definitions[name] = Params(definition, source=source, field=field)
+            self._definitions[name] = Params(definition, source=source, field=fields[name])
         self.namespace = namespace
         return namespace
 
@@ -238,8 +262,9 @@ class ControllerManager:
         type_name = params.string("type")
         cls = self.types.get(type_name)
         if cls is None:
-            raise params.error(f"unknown controller type (known: {', '.join(sorted(self.types))})",
-                               "type", type_name)
+            raise ConfigError(f"unknown controller type (known: {', '.join(sorted(self.types))})",
+                              source=params.source, field=self._type_fields.get(name, params.path("type")),
+                              value=type_name)
         controller = cls(name, params)
         controller.context = self.context
         # Loaned: every state handle, and the command handles of the interfaces it claims.
@@ -458,4 +483,5 @@ def _upstream_first(controllers: list[Controller]) -> list[Controller]:
     return ordered
 
 
-__all__ = ["ControllerFailure", "ControllerManager", "YamlLoader", "load_yaml_text", "read_yaml", "set_dotted"]
+__all__ = ["ControllerFailure", "ControllerManager", "YamlLoader", "load_yaml_text", "read_yaml", "ros2_update_rate",
+           "set_dotted"]

@@ -19,13 +19,21 @@ from jointctl.control.controller import Controller
 #: YAML ``type`` -> ``"module:Class"``.
 BUILTIN_TYPES: Mapping[str, str] = {
     "joint_state_controller/JointStateController": "jointctl.control.joint_state_controller:JointStateController",
-    "joint_state_broadcaster/JointStateBroadcaster": "jointctl.control.joint_state_controller:JointStateController",
+    "joint_state_broadcaster/JointStateBroadcaster": "jointctl.control.joint_state_controller:JointStateBroadcaster",
     "effort_controllers/JointPositionController": "jointctl.control.joint_controllers:JointPositionController",
     "effort_controllers/JointVelocityController": "jointctl.control.joint_controllers:JointVelocityController",
     "admittance_controllers/AdmittanceController": "jointctl.control.admittance_controller:AdmittanceController",
     "admittance_controllers/CartesianAdmittanceController":
         "jointctl.control.cartesian_admittance_controller:CartesianAdmittanceController",
     "trajectory_controllers/JointTrajectoryExecutor": "jointctl.trajectory.executor:TrajectoryExecutor",
+    # ros2_controllers' types, computing as they do (docs/ros2_control_files.md).
+    "pid_controller/PidController": "jointctl.control.pid_controller:PidController",
+    "forward_command_controller/ForwardCommandController":
+        "jointctl.control.forward_command_controller:ForwardCommandController",
+    "effort_controllers/JointGroupEffortController":
+        "jointctl.control.forward_command_controller:JointGroupEffortController",
+    "joint_trajectory_controller/JointTrajectoryController":
+        "jointctl.trajectory.joint_trajectory_controller:JointTrajectoryController",
 }
 
 _PLUGINS: dict[str, type[Controller]] = {}

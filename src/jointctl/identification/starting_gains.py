@@ -97,8 +97,9 @@ def effort_joints(robot) -> list[str]:
     driven = {t.joint for t in robot.transmissions if EFFORT_INTERFACE in t.hardware_interfaces}
     joints = [j.name for j in robot.movable_joints if j.name in driven]
     if not joints:
-        raise ConfigError("no movable joint has a <transmission> with an EffortJointInterface: jointctl (as "
-                          "ros_control) drives only joints with a transmission; add one per joint",
+        raise ConfigError("no movable joint has a <transmission> with an EffortJointInterface or a <ros2_control> "
+                          "effort command interface: jointctl (as ros_control) drives only joints with one; add one "
+                          "per joint",
                           source=robot.source, field="transmission")
     return joints
 

@@ -13,6 +13,8 @@ import math
 
 from dataclasses import dataclass, field
 
+from jointctl.model.ros2_control import EFFORT, Ros2ControlComponent, Ros2ControlJoint
+
 Vector3 = tuple[float, float, float]
 
 MOVABLE_JOINT_TYPES = frozenset({"revolute", "continuous", "prismatic"})
@@ -149,6 +151,10 @@ class Transmission:
     ``hardware_interfaces`` holds the short names (``EffortJointInterface``,
     ``VelocityJointInterface``, ``PositionJointInterface``), with any
     ``hardware_interface/`` prefix removed.
+
+    ``ros2_control`` names the ``<ros2_control>`` component when the transmission is not the URDF's
+    own but says that a ros2_control joint with an ``effort`` command interface is driven through
+    its effort (what the simulated robot's actuators are built from), None for a ``<transmission>``.
     """
 
     name: str
@@ -157,6 +163,7 @@ class Transmission:
     hardware_interfaces: tuple[str, ...]
     actuator: str | None = None
     mechanical_reduction: float = 1.0
+    ros2_control: str | None = None
 
 
 @dataclass(frozen=True)
@@ -177,7 +184,13 @@ class SensorSpec:
 
 @dataclass(frozen=True)
 class RobotModel:
-    """A validated robot description. Joint order is the document order."""
+    """A validated robot description. Joint order is the document order.
+
+    ``ros2_control`` holds the URDF's ``<ros2_control>`` components (ROS 2's hardware description,
+    :mod:`jointctl.model.ros2_control`); their effort-commanded joints also appear in ``transmissions``
+    (with the component's name in ``Transmission.ros2_control``) unless a ``<transmission>`` already
+    drives them.
+    """
 
     name: str
     links: tuple[Link, ...]
@@ -186,6 +199,7 @@ class RobotModel:
     sensors: tuple[SensorSpec, ...] = ()
     namespace: str | None = None
     source: str | None = None
+    ros2_control: tuple[Ros2ControlComponent, ...] = ()
     _links_by_name: dict[str, Link] = field(init=False, repr=False, compare=False)
     _joints_by_name: dict[str, Joint] = field(init=False, repr=False, compare=False)
 
@@ -220,3 +234,23 @@ class RobotModel:
 
     def child_joints(self, link_name: str) -> tuple[Joint, ...]:
         return tuple(j for j in self.joints if j.parent == link_name)
+
+    def ros2_control_joint(self, joint_name: str) -> tuple[Ros2ControlComponent, Ros2ControlJoint] | None:
+        """The ``<ros2_control>`` component listing ``joint_name`` and its entry there, or None."""
+        for component in self.ros2_control:
+            entry = component.joint(joint_name)
+            if entry is not None:
+                return component, entry
+        return None
+
+    @property
+    def initial_positions(self) -> dict[str, float]:
+        """The ``initial_value`` of each ros2_control joint's ``position`` state interface [m or rad], by joint
+        (where a simulation starts them unless a scenario says otherwise)."""
+        return {j.name: j.initial_position for c in self.ros2_control for j in c.joints
+                if j.initial_position is not None}
+
+    @property
+    def effort_commanded(self) -> tuple[str, ...]:
+        """The joints a ``<ros2_control>`` component gives an ``effort`` command interface, in component order."""
+        return tuple(j.name for c in self.ros2_control for j in c.joints if EFFORT in j.command_names)

@@ -4,7 +4,8 @@ Errors name the file, the element (``joint[joint1].limit``) and the attribute
 with its value. Besides the URDF core (links, joints, limits, dynamics) this
 reads ros_control ``<transmission>`` elements and two Gazebo plugins the
 chapter's robots use: ``gazebo_ros_control`` (for the robot namespace) and
-``gazebo_ros_ft_sensor`` (a force-torque sensor on a joint).
+``gazebo_ros_ft_sensor`` (a force-torque sensor on a joint); and ROS 2's ``<ros2_control>``
+elements (:mod:`jointctl.model.ros2_control`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import math
 import xml.etree.ElementTree as ET
 
 from jointctl.errors import ModelError
+from jointctl.model.ros2_control import EFFORT, Ros2ControlComponent, parse_ros2_control
 from jointctl.model.robot_model import (
     JOINT_TYPES,
     Geometry,
@@ -114,15 +116,40 @@ class _Parser:
                 raise self.error("transmission names a joint that does not exist",
                                  f"transmission[{tr.name}].joint", tr.joint)
         namespace, sensors = self.gazebo(root, joints)
+        components = self.ros2_control(root, joints)
         return RobotModel(
             name=name,
             links=links,
             joints=joints,
-            transmissions=transmissions,
+            transmissions=transmissions + self.effort_transmissions(components, transmissions),
             sensors=sensors,
             namespace=namespace,
             source=self.source,
+            ros2_control=components,
         )
+
+    def ros2_control(self, root: ET.Element, joints: tuple[Joint, ...]) -> tuple[Ros2ControlComponent, ...]:
+        by_name = {j.name: j for j in joints}
+        components = tuple(parse_ros2_control(el, by_name, self.source) for el in root.findall("ros2_control"))
+        self.unique([c.name for c in components], "ros2_control")
+        owner: dict[str, str] = {}
+        for c in components:
+            for j in c.joints:
+                if j.name in owner:
+                    raise self.error(f"the joint is already in ros2_control[{owner[j.name]}]",
+                                     f"ros2_control[{c.name}].joint", j.name)
+                owner[j.name] = c.name
+        return components
+
+    @staticmethod
+    def effort_transmissions(components: tuple[Ros2ControlComponent, ...],
+                             transmissions: tuple[Transmission, ...]) -> tuple[Transmission, ...]:
+        """A transmission with an EffortJointInterface for every ros2_control joint with an ``effort``
+        command interface that no ``<transmission>`` drives yet: how the simulated robot knows to actuate it."""
+        driven = {t.joint for t in transmissions}
+        return tuple(Transmission(f"{c.name}/{j.name}", "transmission_interface/SimpleTransmission", j.name,
+                                  ("EffortJointInterface",), ros2_control=c.name)
+                     for c in components for j in c.joints if EFFORT in j.command_names and j.name not in driven)
 
     def unique(self, names: list[str], kind: str) -> None:
         seen: set[str] = set()

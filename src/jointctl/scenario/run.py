@@ -65,6 +65,8 @@ def run_scenario(
     # its figures would not describe the experiment: the run ends in an error instead.
     session.manager.raise_failures()
     metrics: dict[str, Any] = {"scenario": scenario.name, "duration_s": scenario.duration_s}
+    if session.world is not None and session.robot.ros2_control:  # the simulation stood in for ROS 2 hardware
+        metrics["stands_in_for"] = [component.stand_in() for component in session.robot.ros2_control]
     if analysis is not None:
         metrics.update(analysis(session, load_trace(session.trace_path), out, scenario.analysis))
     metrics["real_time_factor"] = real_time_factor

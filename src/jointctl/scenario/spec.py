@@ -11,7 +11,8 @@ live here::
       joint1_position_controller: {pid: {p: 800}}
     start_controllers: [joint_state_controller, joint1_position_controller]
     gravity: -9.81                  # m/s² along z, or [gx, gy, gz]
-    timestep_s: 0.001               # physics step; the loop runs at loop_rate_hz (default 1/timestep)
+    timestep_s: 0.001               # physics step; the loop runs at loop_rate_hz (default 1/timestep, or a
+                                    # ROS 2 controller file's controller_manager update_rate)
     initial_positions: {joint1: -0.2}
     duration_s: 3.0
     commands:
@@ -46,8 +47,9 @@ from typing import Any
 
 import yaml
 
-from jointctl.control.manager import load_yaml_text, read_yaml, set_dotted
+from jointctl.control.manager import load_yaml_text, read_yaml, ros2_update_rate, set_dotted
 from jointctl.control.params import unknown_field_message
+from jointctl.control.ros2_parameters import controller_entries
 from jointctl.errors import ConfigError
 from jointctl.paths import robots_dir, scenarios_dir
 from jointctl.scenario.plant import JOINT_FIELDS, LINK_FIELDS, PAYLOAD, check_model_value, check_payload
@@ -263,8 +265,13 @@ class _Validator:
         if not isinstance(start, list) or not start or not all(isinstance(s, str) for s in start):
             raise self.error("must be a non-empty list of controller names", "start_controllers", start)
         timestep = self.number("timestep_s", 0.001, positive=True)
-        rate = self.number("loop_rate_hz", 1.0 / timestep, positive=True)
-        steps = physics_steps(1.0 / rate, timestep, source=self.source, field="loop_rate_hz", value=rate)
+        update_rate = ros2_update_rate(controller_file) if "loop_rate_hz" not in raw else None
+        if update_rate is not None:  # a ROS 2 file: the controller manager's rate is the loop's
+            rate, rate_field = update_rate
+            steps = physics_steps(1.0 / rate, timestep, source=str(controller_file), field=rate_field, value=rate)
+        else:
+            rate = self.number("loop_rate_hz", 1.0 / timestep, positive=True)
+            steps = physics_steps(1.0 / rate, timestep, source=self.source, field="loop_rate_hz", value=rate)
         floor = raw.get("floor", True)
         if not isinstance(floor, bool):
             raise self.error("must be true or false", "floor", floor)
@@ -495,14 +502,12 @@ def scenario_for_robot(robot: str | RobotFiles, controllers: str, overrides: Ite
     if not isinstance(tree, dict):
         raise ConfigError("must map controller names (under one namespace) to their parameters",
                           source=str(controller_path), value=tree)
-    body = next(iter(tree.values())) if len(tree) == 1 and all(isinstance(v, dict) and "type" not in v
-                                                               for v in tree.values()) else tree
     defaults = files.extras.get("serve") or {}
     name = robot if isinstance(robot, str) else files.name
     raw = {
         "name": f"{name}_{controller_path.stem if controllers not in files.controller_files else controllers}",
         "robot": robot if isinstance(robot, str) else files.reference, "controller_file": str(controllers),
-        "start_controllers": [key for key, c in body.items() if isinstance(c, dict) and "type" in c],
+        "start_controllers": list(controller_entries(tree)),
         "gravity": defaults.get("gravity", -9.81), "initial_positions": defaults.get("initial_positions", {}),
         "duration_s": 1e9, "record": {"every": 1},
     }

@@ -3,6 +3,12 @@
 :class:`MujocoWorld` owns ``MjModel``/``MjData``, resolves joint, actuator and
 sensor names to MuJoCo addresses once, and steps the physics. Joint values
 are in the URDF's units (m for prismatic, rad for revolute joints).
+
+For a URDF with ``<ros2_control>`` the world stands in for its hardware plugin: the joints with an
+``effort`` command interface get effort actuators, each starts at the ``initial_value`` of its
+``position`` state interface (unless ``initial_positions`` says otherwise), and a joint whose
+command interfaces are only ``velocity``/``position`` (or others) is refused with
+:func:`check_simulated_interfaces`: the world simulates effort-driven joints.
 """
 
 from __future__ import annotations
@@ -20,6 +26,20 @@ from jointctl.sim.objects import ObjectSpec
 
 _GEOM = {"cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER, "box": mujoco.mjtGeom.mjGEOM_BOX,
          "sphere": mujoco.mjtGeom.mjGEOM_SPHERE}
+
+
+def check_simulated_interfaces(robot: RobotModel) -> None:
+    """Refuse a ``<ros2_control>`` joint with command interfaces none of which is ``effort`` (and no
+    ``<transmission>`` with an EffortJointInterface driving it): the simulated robot's actuators take
+    efforts; a velocity or position interface is a drive's own servo, which the world does not invent."""
+    driven = {t.joint for t in robot.transmissions if "EffortJointInterface" in t.hardware_interfaces}
+    for component in robot.ros2_control:
+        for joint in component.joints:
+            if joint.command_interfaces and joint.name not in driven:
+                raise ModelError("jointctl's simulated robot drives joints through an effort command interface "
+                                 "only (add <command_interface name=\"effort\"/>)", source=robot.source,
+                                 field=f"ros2_control[{component.name}].joint[{joint.name}].command_interface",
+                                 value=", ".join(joint.command_names))
 
 
 class MujocoWorld:
@@ -40,6 +60,7 @@ class MujocoWorld:
     ) -> None:
         self.robot = robot
         self.settings = settings
+        check_simulated_interfaces(robot)
         self.spec = build_spec(robot, settings)
         try:
             self.model = self.spec.compile()
@@ -48,7 +69,8 @@ class MujocoWorld:
         self.data = mujoco.MjData(self.model)
         self.joint_names: tuple[str, ...] = tuple(j.name for j in robot.movable_joints)
         self._resolve_addresses()
-        self.initial_positions = self._check_initial(initial_positions or {}, source)
+        # ros2_control's initial values first (checked against the limits by the URDF parser), then the caller's.
+        self.initial_positions = {**robot.initial_positions, **self._check_initial(initial_positions or {}, source)}
         self.spawned: list[ObjectSpec] = []
         self._rebuild_listeners: list[Callable[[], None]] = []
         self.reset()

@@ -68,6 +68,10 @@ LATE_START_S = 0.1
 class TrajectoryExecutor(Controller):
     """Interpolates goals into references for one position controller per joint."""
 
+    #: Whether a goal's end checks the joints' speeds against ``stopped_velocity_tolerance`` even without a goal
+    #: tolerance (ros2_controllers' JointTrajectoryController does; ros_controllers' only with one).
+    stopped_velocity_always = False
+
     def __init__(self, name: str, params: Params) -> None:
         super().__init__(name, params)
         joints = params.raw("joints")
@@ -158,6 +162,20 @@ class TrajectoryExecutor(Controller):
         return tuple((j, POSITION) for j in self.joint_names)
 
     def configure(self, hardware: HardwareInterface, robot: RobotModel) -> None:
+        self._resolve(hardware, robot)
+        if not self.downstream:  # the hardware's position command interfaces, written directly
+            for k, joint in enumerate(self.joint_names):
+                if POSITION not in hardware.command_interfaces(joint):
+                    raise ConfigError("the joint has no position command interface (list position_controllers "
+                                      "to command it through position controllers)", source=self.source,
+                                      field=f"{self.field}.joints[{k}]", value=joint)
+            n = len(hardware.joint_names)
+            self._positions = hardware.command_buffer(POSITION)
+            self._velocities, self._accelerations = [0.0] * n, [0.0] * n  # not sent: the hardware interpolates
+            self._in_use = self.context.references if self.context is not None else None
+
+    def _resolve(self, hardware: HardwareInterface, robot: RobotModel) -> None:
+        """The joints' hardware indices and their limits from the model."""
         self.hardware = hardware
         self.hw_index = [hardware.joint_index(j, source=self.source, field=f"{self.field}.joints")
                          for j in self.joint_names]
@@ -171,16 +189,6 @@ class TrajectoryExecutor(Controller):
         first = self.hw_index[0]
         consecutive = self.hw_index == list(range(first, first + len(self.hw_index)))
         self._span = slice(first, first + len(self.hw_index)) if consecutive else None
-        if not self.downstream:  # the hardware's position command interfaces, written directly
-            for k, joint in enumerate(self.joint_names):
-                if POSITION not in hardware.command_interfaces(joint):
-                    raise ConfigError("the joint has no position command interface (list position_controllers "
-                                      "to command it through position controllers)", source=self.source,
-                                      field=f"{self.field}.joints[{k}]", value=joint)
-            n = len(hardware.joint_names)
-            self._positions = hardware.command_buffer(POSITION)
-            self._velocities, self._accelerations = [0.0] * n, [0.0] * n  # not sent: the hardware interpolates
-            self._in_use = self.context.references if self.context is not None else None
 
     def bind_downstream(self, controllers: dict[str, Controller]) -> None:
         if not self.downstream:  # commanding position interfaces: nothing to bind
@@ -514,7 +522,7 @@ class TrajectoryExecutor(Controller):
         if time_s + 1e-9 < plan.end_s:
             return
         reached = goal_reached(desired, actual, self._of_joints(hw.velocity), self.goal_tolerance,
-                               self.stopped_velocity_tolerance)
+                               self.stopped_velocity_tolerance, velocity_always=self.stopped_velocity_always)
         if reached and hw.in_motion is not True:  # and the hardware, if it says, says at rest
             self.goals.end(GoalStatus.SUCCEEDED, TrajectoryErrorCode.SUCCESSFUL, "", time_s)
         elif reached and time_s > plan.end_s + self.goal_time_s:
@@ -552,7 +560,7 @@ class TrajectoryExecutor(Controller):
             return
         self._executed_at_s = min(self._executed_at_s, time_s)
         reached = goal_reached(desired, actual, self._of_joints(hw.velocity), self.goal_tolerance,
-                               self.stopped_velocity_tolerance)
+                               self.stopped_velocity_tolerance, velocity_always=self.stopped_velocity_always)
         if reached and hw.in_motion is not True:
             self.goals.end(GoalStatus.SUCCEEDED, TrajectoryErrorCode.SUCCESSFUL, "", time_s)
         elif time_s > self._executed_at_s + self.goal_time_s:

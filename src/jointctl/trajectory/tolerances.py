@@ -25,9 +25,15 @@ def path_violation(desired: Sequence[float], actual: Sequence[float], tolerance:
 
 
 def goal_reached(desired: Sequence[float], actual: Sequence[float], velocity: Sequence[float],
-                 tolerance: Sequence[float], stopped_velocity: float) -> bool:
+                 tolerance: Sequence[float], stopped_velocity: float, *, velocity_always: bool = False) -> bool:
     """Every joint within its (positive) goal tolerance, and, if any tolerance is set, every joint's
-    speed at most ``stopped_velocity``. Without any tolerance a goal is reached at its end."""
+    speed at most ``stopped_velocity``. Without any tolerance a goal is reached at its end.
+
+    ``velocity_always`` (ros2_controllers' JointTrajectoryController): the speeds are checked against a
+    positive ``stopped_velocity`` whether or not a position tolerance is set."""
+    if velocity_always:
+        return (all(tol <= 0 or abs(d - a) <= tol for d, a, tol in zip(desired, actual, tolerance))
+                and (stopped_velocity <= 0 or all(abs(v) <= stopped_velocity for v in velocity)))
     if not any(tol > 0 for tol in tolerance):
         return True
     return (all(tol <= 0 or abs(d - a) <= tol for d, a, tol in zip(desired, actual, tolerance))

@@ -16,7 +16,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from jointctl.control.forward_command_controller import ForwardCommandController
+from jointctl.control.pid_controller import PidController
 from jointctl.errors import ConfigError
+from jointctl.trajectory.joint_trajectory_controller import JointTrajectoryController
 from jointctl.scenario.analyses.arm import analyse_arm_pose
 from jointctl.scenario.analyses.checks import add_warnings, check_spec
 from jointctl.scenario.analyses.common import analysed_joint
@@ -29,6 +32,9 @@ from jointctl.scenario.analyses.step import analyse_step
 from jointctl.scenario.analyses.trajectory import analyse_trajectory_tracking
 from jointctl.scenario.session import Session
 from jointctl.recording.trace import Trace
+
+#: ros2_controllers' types, which the analyses' loop models do not describe.
+ROS2_TYPES = (PidController, ForwardCommandController, JointTrajectoryController)
 
 Analysis = Callable[[Session, Trace, Path, dict[str, Any]], dict[str, Any]]
 
@@ -58,7 +64,13 @@ def check_analysis(session: Session) -> Analysis | None:
                           source=session.scenario.source, field="analysis.type", value=spec["type"])
     analyse, names_a_joint = entry
     if names_a_joint:
-        analysed_joint(session, spec)
+        joint = analysed_joint(session, spec)
+        controller = session.manager.commanding(joint)
+        if isinstance(controller, ROS2_TYPES):
+            raise ConfigError(f"the analyses model ros_control's joint controllers; {joint} is commanded by "
+                              f"{controller.name!r}, a ROS 2 type (run without an analysis: --set analysis=null, "
+                              "and read the trace)", source=session.scenario.source, field="analysis.joint",
+                              value=joint)
     check_spec(session, spec)
 
     def analyse_and_warn(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:
