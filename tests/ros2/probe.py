@@ -1,10 +1,12 @@
 """A small rclpy client the ROS 2 tests run as a child process (ROS 2 sourced): it reads ``/joint_states`` and prints
 JSON on stdout, so a test asks "where did the joint come to rest" in one call.
 
-    python probe.py rest JOINT [--still RATE] [--samples N] [--timeout S]
+    python probe.py rest|steady JOINT [--still RATE] [--samples N] [--timeout S]
 
-``rest`` waits until the joint's speed |v| [m/s or rad/s] stays below ``--still`` for ``--samples`` messages in a row,
-and prints ``{"position": q, "velocity": v, "stamp": s, "messages": n}``; exit 1 with a JSON ``error`` on timeout.
+``rest`` waits until the joint's speed |v| [m/s or rad/s] stays below ``--still`` for ``--samples`` messages in a row;
+``steady`` until its speed changes by less than ``--still`` from one message to the next for ``--samples`` messages
+in a row (a terminal speed). Both print ``{"position": q, "velocity": v, "stamp": s, "messages": n}``; exit 1 with a
+JSON ``error`` on timeout.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from sensor_msgs.msg import JointState
 
 def main() -> int:
     parser = argparse.ArgumentParser()
-    parser.add_argument("what", choices=("rest",))
+    parser.add_argument("what", choices=("rest", "steady"))
     parser.add_argument("joint")
     parser.add_argument("--still", type=float, default=1e-4)
     parser.add_argument("--samples", type=int, default=50)
@@ -36,7 +38,9 @@ def main() -> int:
             return
         k = list(msg.name).index(args.joint)
         seen["count"] += 1
-        seen["run"] = seen["run"] + 1 if abs(msg.velocity[k]) < args.still else 0
+        change = msg.velocity[k] - (seen["last"][1] if seen["last"] else float("inf"))
+        moving = abs(msg.velocity[k] if args.what == "rest" else change)
+        seen["run"] = seen["run"] + 1 if moving < args.still else 0
         seen["last"] = (msg.position[k], msg.velocity[k], msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec)
 
     node.create_subscription(JointState, "/joint_states", on_state, 10)
@@ -44,7 +48,7 @@ def main() -> int:
     while seen["run"] < args.samples and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
     if seen["run"] < args.samples:
-        print(json.dumps({"error": f"{args.joint} not at rest within {args.timeout} s", "last": seen["last"],
+        print(json.dumps({"error": f"{args.joint} not {args.what} within {args.timeout} s", "last": seen["last"],
                           "messages": seen["count"]}))
         return 1
     q, v, stamp = seen["last"]

@@ -34,9 +34,10 @@ class ServedRobot:
             return out if all(any(c in line for line in lines) for c in controllers) else None
         return wait_until(listed, f"controllers {controllers} listed active", timeout_s=90, every_s=0.5)
 
-    def rest(self, joint: str, timeout_s: float = 60.0) -> dict:
-        """Where ``joint`` comes to rest, from /joint_states (tests/ros2/probe.py)."""
-        done = subprocess.run([sys.executable, str(PROBE), "rest", joint, "--timeout", str(timeout_s)],
+    def rest(self, joint: str, timeout_s: float = 60.0, what: str = "rest", *options: str) -> dict:
+        """Where ``joint`` comes to rest (``what="steady"``: to a steady speed), from /joint_states
+        (tests/ros2/probe.py)."""
+        done = subprocess.run([sys.executable, str(PROBE), what, joint, "--timeout", str(timeout_s), *options],
                               env=self.env, capture_output=True, text=True, timeout=timeout_s + 30)
         result = json.loads(done.stdout.strip().splitlines()[-1])
         assert done.returncode == 0, result

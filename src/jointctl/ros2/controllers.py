@@ -14,7 +14,13 @@ relative to it (``~/reference`` is ``/<controller>/reference``) and the joint st
   read-only, and ``gains.<joint>.{p, i, d, i_clamp_max, i_clamp_min, antiwindup}``, which ``ros2 param set``
   changes while running: validated whole (finite, p, i, d not negative, i_clamp_min not above i_clamp_max) and
   applied from the next cycle; a refused change is answered unsuccessful with the reason, and the gains stay;
-- a trajectory executor: joint_trajectory_controller's ``~/follow_joint_trajectory`` action
+- ros2_controllers' own types (:mod:`jointctl.control.pid_controller`, ``forward_command_controller``) keep their
+  topics and parameters: pid_controller's ``~/reference``, ``~/controller_state`` (every cycle it runs, as
+  pid_controller publishes), ``~/set_feedforward_control`` (std_srvs/srv/SetBool) and every parameter of its file
+  (``gains.<dof>.*`` changed live through the controller's ``set_parameter``, which refuses what ros2_controllers
+  refuses); forward_command_controller's ``~/commands`` (std_msgs/msg/Float64MultiArray, one value per joint) and its
+  ``joints`` and ``interface_name`` parameters (read-only); joint_state_broadcaster's ``use_local_topics``;
+- a trajectory executor (and ``joint_trajectory_controller/JointTrajectoryController``): joint_trajectory_controller's ``~/follow_joint_trajectory`` action
   (control_msgs/action/FollowJointTrajectory) and ``~/joint_trajectory`` topic. As JTC does, a goal that is
   not valid is rejected when it arrives (its reason, with the error code JTC's result would carry, logged on
   /rosout); one that strays beyond its tolerances ends aborted with PATH_TOLERANCE_VIOLATED (-4) or
@@ -37,10 +43,14 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import SetBool
 from trajectory_msgs.msg import JointTrajectory as Ros2JointTrajectory
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from jointctl.control.forward_command_controller import ForwardCommandController
 from jointctl.control.joint_controllers import JointPositionController, _EffortJointController
+from jointctl.control.pid_controller import GAIN_NUMBERS, GAIN_SWITCHES, PidController, PidControllerState
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.control.pid import PidGains
 from jointctl.errors import InvalidCommand, JointCtlError
@@ -60,10 +70,11 @@ def pid_faced(controller) -> bool:
 
 
 class JointStateFace:
-    """``/joint_states`` of a joint state controller."""
+    """``/joint_states`` of a joint state controller (``~/joint_states`` with ``use_local_topics``)."""
 
     def __init__(self, node: Node, controller: JointStateController, clock) -> None:
-        self.publisher = node.create_publisher(JointState, "/joint_states", 10)
+        topic = "~/joint_states" if getattr(controller, "use_local_topics", False) else "/joint_states"
+        self.publisher = node.create_publisher(JointState, topic, 10)
         controller.subscribe(lambda sample: self.publisher.publish(
             joint_state_to_ros2(sample, clock.stamp(sample.time_s))))
 
@@ -157,6 +168,76 @@ class PidFace:
         self.state_publisher.publish(msg)
 
 
+class PidControllerFace:
+    """ros2_controllers' pid_controller on jointctl's :class:`PidController` (see the module's docstring)."""
+
+    def __init__(self, node: Node, controller: PidController, clock) -> None:
+        self.node, self.controller, self.clock = node, controller, clock
+        read_only = ParameterDescriptor(read_only=True)
+        node.declare_parameter("dof_names", list(controller.dof_names), read_only)
+        node.declare_parameter("reference_and_state_dof_names", list(controller.state_dof_names), read_only)
+        node.declare_parameter("command_interface", controller.command_interface, read_only)
+        node.declare_parameter("reference_and_state_interfaces", list(controller.interfaces), read_only)
+        node.declare_parameter("use_external_measured_states", controller.use_external_measured_states, read_only)
+        for dof, gains in zip(controller.dof_names, controller.gains):
+            for name in (*GAIN_NUMBERS, *GAIN_SWITCHES):
+                node.declare_parameter(f"gains.{dof}.{name}", getattr(gains, name))
+        node.add_on_set_parameters_callback(self._on_parameters)
+        self.subscription = node.create_subscription(MultiDOFCommand, "~/reference", self._on_reference,
+                                                     REFERENCE_QOS)
+        self.state_publisher = node.create_publisher(MultiDOFStateStamped, "~/controller_state", 1)
+        node.create_service(SetBool, "~/set_feedforward_control", self._on_feedforward)
+        controller.subscribe(self._publish_state)
+
+    def _on_parameters(self, parameters) -> SetParametersResult:
+        for parameter in parameters:
+            try:
+                self.controller.set_parameter(parameter.name, parameter.value)
+            except JointCtlError as exc:
+                return SetParametersResult(successful=False, reason=f"{parameter.name}: {exc.message} "
+                                                                    f"(value {parameter.value!r})")
+        return SetParametersResult(successful=True)
+
+    def _on_reference(self, msg: MultiDOFCommand) -> None:
+        try:
+            self.controller.set_reference(list(msg.values), list(msg.values_dot) or None, list(msg.dof_names) or None)
+        except InvalidCommand as exc:
+            self.node.get_logger().warn(f"refused a reference: {exc}")
+
+    def _on_feedforward(self, request, response):
+        try:
+            self.controller.set_feedforward(bool(request.data))
+            response.success, response.message = True, ""
+        except JointCtlError as exc:
+            response.success, response.message = False, str(exc)
+        return response
+
+    def _publish_state(self, state: PidControllerState) -> None:
+        msg = MultiDOFStateStamped()
+        msg.header.stamp = self.clock.stamp(state.time_s)
+        msg.dof_states = [SingleDOFState(name=d.name, reference=d.reference, feedback=d.feedback,
+                                         feedback_dot=d.feedback_dot, error=d.error, error_dot=d.error_dot,
+                                         time_step=d.time_step, output=d.output) for d in state.dof_states]
+        self.state_publisher.publish(msg)
+
+
+class ForwardCommandFace:
+    """forward_command_controller's ``~/commands`` on jointctl's :class:`ForwardCommandController`."""
+
+    def __init__(self, node: Node, controller: ForwardCommandController) -> None:
+        self.node, self.controller = node, controller
+        read_only = ParameterDescriptor(read_only=True)
+        node.declare_parameter("joints", list(controller.joints), read_only)
+        node.declare_parameter("interface_name", controller.interface_name, read_only)
+        self.subscription = node.create_subscription(Float64MultiArray, "~/commands", self._on_commands, 1)
+
+    def _on_commands(self, msg: Float64MultiArray) -> None:
+        try:
+            self.controller.set_commands(list(msg.data))
+        except InvalidCommand as exc:
+            self.node.get_logger().warn(f"refused commands: {exc}")
+
+
 class TrajectoryFace:
     """joint_trajectory_controller's action and topic on a trajectory executor (see the module's doc)."""
 
@@ -224,4 +305,24 @@ class TrajectoryFace:
         return msg
 
 
-__all__ = ["JointStateFace", "PidFace", "TrajectoryFace", "pid_faced"]
+__all__ = ["ForwardCommandFace", "JointStateFace", "PidControllerFace", "PidFace", "TrajectoryFace", "faces",
+           "pid_faced"]
+
+
+def faces(node_for, session, clock, state_rate_hz: float) -> list:
+    """The ROS 2 face of each of ``session``'s running controllers that has one; ``node_for(name)`` makes the node
+    of a controller."""
+    manager = session.manager
+    made = []
+    for controller in manager.active:
+        if isinstance(controller, JointStateController):
+            made.append(JointStateFace(node_for(controller.name), controller, clock))
+        elif isinstance(controller, PidController):
+            made.append(PidControllerFace(node_for(controller.name), controller, clock))
+        elif isinstance(controller, ForwardCommandController):
+            made.append(ForwardCommandFace(node_for(controller.name), controller))
+        elif pid_faced(controller) and manager.command_owner(controller.name) is None:
+            made.append(PidFace(node_for(controller.name), controller, session, clock, state_rate_hz))
+        elif isinstance(controller, TrajectoryExecutor):
+            made.append(TrajectoryFace(node_for(controller.name), controller, clock))
+    return made

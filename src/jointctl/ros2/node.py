@@ -37,16 +37,14 @@ from geometry_msgs.msg import TransformStamped
 from std_msgs.msg import Float64MultiArray, String
 from tf2_msgs.msg import TFMessage
 
-from jointctl.control.joint_state_controller import JointStateController
 from jointctl.model.loader import description_text
 from jointctl.recording.foxglove_messages import RobotFrames
 from jointctl.ros2.controller_manager import ControllerManagerServices
-from jointctl.ros2.controllers import JointStateFace, PidFace, TrajectoryFace, pid_faced
+from jointctl.ros2.controllers import faces
 from jointctl.ros2.conversions import time_msg
 from jointctl.runtime.clock import WallClockPacer
 from jointctl.runtime.lateness import watch_lateness
 from jointctl.scenario.session import Session
-from jointctl.trajectory.executor import TrajectoryExecutor
 
 SWITCH_INTERVAL_S = 2e-4  # GIL hand-over interval while serving [s] (the loop thread must get it back quickly)
 EXECUTOR_THREADS = 4
@@ -92,14 +90,7 @@ class Ros2Robot:
 
         robot_node = node(f"jointctl_{session.robot.name}")
         self.manager_services = ControllerManagerServices(node("controller_manager"), session)
-        self.faces = []
-        for controller in session.manager.active:
-            if isinstance(controller, JointStateController):
-                self.faces.append(JointStateFace(node(controller.name), controller, self.clock))
-            elif pid_faced(controller) and session.manager.command_owner(controller.name) is None:
-                self.faces.append(PidFace(node(controller.name), controller, session, self.clock, state_rate_hz))
-            elif isinstance(controller, TrajectoryExecutor):
-                self.faces.append(TrajectoryFace(node(controller.name), controller, self.clock))
+        self.faces = faces(node, session, self.clock, state_rate_hz)
         description = robot_node.create_publisher(String, "/robot_description", LATCHED)
         description.publish(String(data=description_text(session.robot)))
         self._description = description
