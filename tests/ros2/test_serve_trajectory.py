@@ -36,6 +36,9 @@ def test_a_goal_sent_with_the_cli_succeeds_where_it_asks(trajectory_robot):
     env = trajectory_robot.env
     out = ros2(env, "action", "send_goal", ACTION, "control_msgs/action/FollowJointTrajectory", goal(-0.3))
     assert "SUCCEEDED" in out.stdout and "error_code: 0" in out.stdout, out.stdout + out.stderr
+    state = ros2(env, "topic", "echo", "--once", "--field", "reference.positions",
+                 "/joint1_trajectory_controller/controller_state", "control_msgs/msg/JointTrajectoryControllerState")
+    assert "[-0.3]" in state.stdout, state.stdout + state.stderr  # the reference held at the goal's end
     assert trajectory_robot.rest("joint1")["position"] == pytest.approx(-0.3, abs=GOAL_TOLERANCE_M)
 
 

@@ -21,7 +21,9 @@ relative to it (``~/reference`` is ``/<controller>/reference``) and the joint st
   refuses); forward_command_controller's ``~/commands`` (std_msgs/msg/Float64MultiArray, one value per joint) and its
   ``joints`` and ``interface_name`` parameters (read-only); joint_state_broadcaster's ``use_local_topics``;
 - a trajectory executor (and ``joint_trajectory_controller/JointTrajectoryController``): joint_trajectory_controller's ``~/follow_joint_trajectory`` action
-  (control_msgs/action/FollowJointTrajectory) and ``~/joint_trajectory`` topic. As JTC does, a goal that is
+  (control_msgs/action/FollowJointTrajectory), ``~/joint_trajectory`` topic and ``~/controller_state``
+  (control_msgs/msg/JointTrajectoryControllerState: the last cycle's reference against the joints' state, positions
+  and velocities, at ``state_rate_hz``). As JTC does, a goal that is
   not valid is rejected when it arrives (its reason, with the error code JTC's result would carry, logged on
   /rosout); one that strays beyond its tolerances ends aborted with PATH_TOLERANCE_VIOLATED (-4) or
   GOAL_TOLERANCE_VIOLATED (-5), a cancel decelerates the joints to rest and ends canceled.
@@ -33,10 +35,9 @@ loop at the start of its next cycle) and never touch the loop's state otherwise.
 from __future__ import annotations
 
 import math
-import threading
 
 from control_msgs.action import FollowJointTrajectory
-from control_msgs.msg import MultiDOFCommand, MultiDOFStateStamped, SingleDOFState
+from control_msgs.msg import JointTrajectoryControllerState, MultiDOFCommand, MultiDOFStateStamped, SingleDOFState
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -241,7 +242,7 @@ class ForwardCommandFace:
 class TrajectoryFace:
     """joint_trajectory_controller's action and topic on a trajectory executor (see the module's doc)."""
 
-    def __init__(self, node: Node, executor: TrajectoryExecutor, clock) -> None:
+    def __init__(self, node: Node, executor: TrajectoryExecutor, clock, loop, hardware, state_rate_hz: float) -> None:
         self.node, self.executor, self.clock = node, executor, clock
         group = ReentrantCallbackGroup()
         self.server = ActionServer(node, FollowJointTrajectory, "~/follow_joint_trajectory",
@@ -249,7 +250,32 @@ class TrajectoryFace:
                                    cancel_callback=lambda _goal: CancelResponse.ACCEPT, callback_group=group)
         self.subscription = node.create_subscription(Ros2JointTrajectory, "~/joint_trajectory", self._on_topic, 1,
                                                      callback_group=group)
-        self._lock = threading.Lock()
+        self.state_publisher = node.create_publisher(JointTrajectoryControllerState, "~/controller_state", 1)
+        self._every = max(1, round(1.0 / (state_rate_hz * loop.period_s)))
+        self._count = 0
+        self._hardware = hardware
+        self._index = [hardware.joint_index(j) for j in executor.joint_names]
+        loop.add_observer(self._publish_state)
+
+    def _publish_state(self, time_s: float) -> None:
+        """The reference of the last cycle against the joints' state, at ``state_rate_hz`` (the loop thread:
+        publish only)."""
+        self._count += 1
+        if self._count % self._every:
+            return
+        hw, executor = self._hardware, self.executor
+        actual = [hw.position[i] for i in self._index]
+        speed = [hw.velocity[i] for i in self._index]
+        desired, desired_speed = executor.desired, executor.desired_velocity
+        msg = JointTrajectoryControllerState()
+        msg.header.stamp = self.clock.stamp(time_s)
+        msg.joint_names = list(executor.joint_names)
+        msg.reference = JointTrajectoryPoint(positions=desired, velocities=desired_speed)
+        msg.feedback = JointTrajectoryPoint(positions=actual, velocities=speed)
+        msg.error = JointTrajectoryPoint(positions=[d - a for d, a in zip(desired, actual)],
+                                         velocities=[d - a for d, a in zip(desired_speed, speed)])
+        msg.speed_scaling_factor = 1.0
+        self.state_publisher.publish(msg)
 
     def _trajectory(self, msg: Ros2JointTrajectory):
         return trajectory_from_ros2(msg, self.clock.ros_time_at_loop_zero())
@@ -324,5 +350,6 @@ def faces(node_for, session, clock, state_rate_hz: float) -> list:
         elif pid_faced(controller) and manager.command_owner(controller.name) is None:
             made.append(PidFace(node_for(controller.name), controller, session, clock, state_rate_hz))
         elif isinstance(controller, TrajectoryExecutor):
-            made.append(TrajectoryFace(node_for(controller.name), controller, clock))
+            made.append(TrajectoryFace(node_for(controller.name), controller, clock, session.loop, session.hardware,
+                                       state_rate_hz))
     return made
