@@ -25,6 +25,7 @@ SCENARIO = scenario_for_robot("arm7dof", "industrial")
 ROBOT = load_robot_model(SCENARIO.robot.description)
 JOINTS = tuple(j.name for j in ROBOT.movable_joints)
 VMAX = tuple(j.range_and_speed()[2] for j in ROBOT.movable_joints)
+RANGES = tuple(j.range_and_speed()[:2] for j in ROBOT.movable_joints)
 PRE_POSE = (0.0, 1.0, 0.0, -2.0, 0.0, 1.0, 0.0)
 GOAL_TOLERANCE = 0.01  # rad: the arm's industrial file
 #: Loop time allowed for a goal beyond its end: the "speed" double runs the last segment (zero
@@ -49,7 +50,7 @@ def arm_against(kind: str, *, failure_reply_delay_s: float = 0.0, stale_status_a
                 error_status: bool = True, **options):
     """(double, session, executor): the arm's industrial session on IndustrialHardware connected to a
     controller double of ``kind``; ``options`` for the hardware (``message``...)."""
-    double = ControllerDouble(kind, PRE_POSE, VMAX, failure_reply_delay_s=failure_reply_delay_s,
+    double = ControllerDouble(kind, PRE_POSE, VMAX, ranges=RANGES, failure_reply_delay_s=failure_reply_delay_s,
                               stale_status_after_failure=stale_status_after_failure, error_status=error_status)
     hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
                                   state_port=double.state_port, max_velocities=VMAX, **options)
@@ -122,13 +123,13 @@ def test_a_cancel_stops_the_robot_short_of_the_goal(arm) -> None:
     goal = smooth_goal(0.3, 3.0, points=2)
     handle = executor.submit(goal, now_s=session.loop.time_s)
     session.run(1.5)
-    assert double.in_motion
+    assert double.moving
     handle.cancel()
     run_until_done(session, handle, 1.0)
     assert handle.status is GoalStatus.PREEMPTED, handle.result
     hardware = session.hardware
-    run_until(session, lambda: double.stops >= 1 and not double.in_motion and hardware.fault is None, 3.0)
-    assert double.stops >= 1 and not double.in_motion and hardware.fault is None
+    run_until(session, lambda: double.stops >= 1 and not double.moving and hardware.fault is None, 3.0)
+    assert double.stops >= 1 and not double.moving and hardware.fault is None
     rest = np.array(double.positions)
     session.run(0.3)
     assert np.array(double.positions) == pytest.approx(rest, abs=1e-9)  # it stays where it stopped
@@ -151,7 +152,7 @@ def test_a_failure_reply_aborts_the_goal_at_once_naming_the_point_and_the_error_
         assert handle.result.time_s < 1.0  # before the goal's first point is even due (loop time)
         assert "the controller refused point 0 of the trajectory (FAILURE; STATUS error_code 22)" in \
             handle.result.error_string
-        assert [m.sequence for _, m in double.points] == [0]  # the rest of the goal was not sent
+        assert [m.sequence for m in double.points] == [0]  # the rest of the goal was not sent
         assert double.positions == pytest.approx(list(PRE_POSE))  # nothing moved
 
 
@@ -167,7 +168,7 @@ def test_a_streamed_command_as_full_points_carries_times_from_the_motions_start(
             hardware.write()
             hardware.advance(0.001)
         wait_until(lambda: len(double.points) >= 3, what="three points at the controller", timeout_s=5.0)
-        sent = [m for _, m in double.points]
+        sent = list(double.points)
         assert [m.sequence for m in sent] == [0, 1, 2]  # one every 20 ms, from a new trajectory
         assert [m.time for m in sent] == pytest.approx([0.02, 0.04, 0.06], rel=1e-6)
         assert [m.positions[0] for m in sent] == pytest.approx([1e-4, 21e-4, 41e-4], abs=1e-7)
@@ -182,7 +183,7 @@ def test_a_failure_reply_without_an_error_status_aborts_the_goal_naming_the_poin
         assert handle.status is GoalStatus.ABORTED
         assert "the controller refused point 0 of the trajectory (FAILURE; no error code reported)" in \
             handle.result.error_string
-        assert [m.sequence for _, m in double.points] == [0]  # the rest of the goal was not sent
+        assert [m.sequence for m in double.points] == [0]  # the rest of the goal was not sent
         assert double.positions == pytest.approx(list(PRE_POSE))  # nothing moved
 
 
@@ -194,7 +195,7 @@ def test_a_download_refused_by_the_status_alone_aborts_the_goal_with_the_error_c
         run_until_done(session, handle, 3.0 + MARGIN_S)
         assert handle.status is GoalStatus.ABORTED
         assert "the controller refused a point (STATUS error_code 22)" in handle.result.error_string
-        assert [m.sequence for _, m in double.points] == [-1, 1, -3]  # the whole goal, as topics
+        assert [m.sequence for m in double.points] == [-1, 1, -3]  # the whole goal, as topics
         assert double.positions == pytest.approx(list(PRE_POSE))  # nothing moved
 
 
@@ -214,7 +215,7 @@ def test_the_velocity_is_the_difference_of_the_last_two_reports_over_their_arriv
     # The test decides when each report leaves: a report sent after t_sent arrives after it, and was read
     # by t_seen, so the hardware's interval between two reports lies within [t_sent2 - t_seen1,
     # t_seen2 - t_sent1], and its velocity Δq / interval within the bounds that follow, whatever the load.
-    double = ControllerDouble("duration", PRE_POSE, VMAX, state_period_s=None)
+    double = ControllerDouble("duration", PRE_POSE, VMAX, ranges=RANGES, state_period_s=None)
     hardware = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=double.motion_port,
                                   state_port=double.state_port, max_velocities=VMAX, stale_after_s=1e9)
     try:
@@ -223,8 +224,7 @@ def test_the_velocity_is_the_difference_of_the_last_two_reports_over_their_arriv
         assert hardware.velocity == [0.0] * len(JOINTS)  # one report: nothing to difference
 
         def send(positions) -> tuple[float, float]:
-            with double.lock:
-                double.positions = list(positions)
+            double.place(positions)
             reports = hardware.state_reports
             sent = time.monotonic()
             double.report()
