@@ -28,7 +28,8 @@ All kinds: the STATE port pushes JOINT_POSITION and STATUS (TOPIC) every ``state
 ``publishing`` is set, with a truthful ``in_motion`` (points queued, a segment running, or a joint
 not yet settled); the MOTION port takes points as SERVICE_REQUESTs (sequence 0 starts a new
 trajectory, from where the interpolator is), queues up to ``capacity`` and holds the reply while the
-queue is full (the flow control) and while ``hold`` is set; STOP (-4) drops the queue, halts the
+queue is full (the flow control) and while ``hold`` is set, and checks a point when it takes it into
+the queue (as MotoROS answers BUSY before it checks); STOP (-4) drops the queue, halts the
 interpolator where it is, and is answered; a client gone mid-motion stops it the same way.
 Download (ROS-I's ``motion_download_interface``, facts §7): points sent as TOPIC from sequence -1
 (a new trajectory) to -3 are collected, checked as above, and executed only after the -3; a refused
@@ -38,11 +39,13 @@ Servo lag: the measured joints (``positions``, what JOINT_POSITION reports) foll
 output through a first-order lag of time constant ``lag_s``, solved exactly over each piece of the
 piecewise-linear reference: on a ramp of speed v they trail the reference by v·lag_s once the
 transient has died out (within e^(-t/lag_s) of it t after the ramp began); after the reference stops
-they settle onto it, and come within ``SETTLED`` of it after lag_s·ln(lag/SETTLED).
+they settle onto it (a joint halted at speed v comes to rest up to v·lag_s beyond where it was
+measured), and are reported at rest once within ``SETTLED`` of it.
 
 Records: every point received in ``points`` (the decoded message) and, with the index of the motion
 connection it came on and its arrival (``time.monotonic()``), in ``received``; every state report in
-``reports`` as (``time.time()``, positions, in_motion); ``stops`` counts STOPs.
+``reports`` as (``time.time()``, positions, in_motion); ``stops`` counts STOPs; ``halts`` keeps where the
+joints were and where the interpolator halted at each STOP and refusal.
 
 Options: ``error_status=False``, a controller that answers FAILURE without ever reporting the error in
 its STATUS (``in_error`` 0, ``error_code`` 0; the reference relays STATUS as the controller sends it);
@@ -58,6 +61,7 @@ from __future__ import annotations
 
 import math
 import queue
+import re
 import socket
 import threading
 import time
@@ -133,6 +137,9 @@ class ControllerDouble:
         self.received: list[tuple[int, float, JointTrajPt | JointTrajPtFull]] = []
         self.reports: list[tuple[float, tuple[float, ...], int]] = []
         self.stops = 0
+        #: (measured, reference) at each STOP and each refusal: where the joints were and where the
+        #: interpolator halted (the joints then settle onto it).
+        self.halts: list[tuple[list[float], list[float]]] = []
         self.error_code = 0
         self._queue: deque = deque()       # (target positions, segment length [s])
         self._segment = None               # [start, target, length, elapsed]
@@ -267,6 +274,7 @@ class ControllerDouble:
     def _refuse(self, code: int) -> ReplyCode:
         self.error_code, self._accepting = code, False
         self._masked = self.stale_status_after_failure
+        self.halts.append((list(self.positions), list(self._reference)))
         self._halt()
         return ReplyCode.FAILURE
 
@@ -275,6 +283,7 @@ class ControllerDouble:
             self._advance()
             if message.sequence == STOP_TRAJECTORY:
                 self.stops += 1
+                self.halts.append((list(self.positions), list(self._reference)))
                 self._halt()
                 self._accepting = False
                 return ReplyCode.SUCCESS
@@ -282,12 +291,12 @@ class ControllerDouble:
                 self._new_trajectory()
             elif not self._accepting:
                 return ReplyCode.FAILURE
-            code, target, length = self._check(message)
-            if code:
-                return self._refuse(code)
             while len(self._queue) >= self.capacity and not self.closing.is_set():
                 self.lock.wait(0.01)  # flow control: the reply waits for room
                 self._advance()
+            code, target, length = self._check(message)  # taken into the queue: checked
+            if code:
+                return self._refuse(code)
             self._queue.append((target, length))
             return ReplyCode.SUCCESS
 
@@ -428,6 +437,17 @@ def _shut(conn: socket.socket) -> None:
     except OSError:
         pass
     conn.close()
+
+
+def asked_values(fault: str, joints) -> dict[str, tuple[float, float]]:
+    """What jointctl's refusal ``fault`` says the refused point asked of each of ``joints``: name ->
+    (position, speed [per s]), from its "NAME POSITION at SPEED/s" items."""
+    found = {}
+    for name in joints:
+        match = re.search(rf"(?<![\w.-]){re.escape(name)} (\S+) at (\S+)/s", fault)
+        assert match is not None, f"{name} is not named in {fault!r}"
+        found[name] = (float(match.group(1)), float(match.group(2)))
+    return found
 
 
 def ros_i_fraction(velocities, max_velocities, default: float = 0.1) -> float:

@@ -6,6 +6,7 @@ behind the same protocol, is tested with it in tests/industrial.)"""
 from __future__ import annotations
 
 import functools
+import math
 import socket
 
 import numpy as np
@@ -14,7 +15,7 @@ import pytest
 from jointctl.hardware.industrial import HardwareUnreachable, IndustrialHardware
 from jointctl.hardware.interface import POSITION
 from jointctl.wire.simple_message import STOP_TRAJECTORY
-from tests.hardware.controller_doubles import ControllerDouble
+from tests.hardware.controller_doubles import ERROR_RANGE, ERROR_TOO_FAST, ControllerDouble, asked_values
 from tests.waiting import wait_until
 
 JOINTS = ("a", "b")
@@ -153,6 +154,44 @@ def test_the_controllers_full_buffer_holds_the_stream_back(peer) -> None:
         wait_for(lambda: (hw.read(), hw.in_motion)[1] is True, "STATUS in_motion 1 from the moving controller")
     finally:
         hw.close()
+
+
+@pytest.mark.parametrize("command, code, joint", [
+    ((0.3, -0.2), ERROR_TOO_FAST, "a"),       # 0.2 m in one 20 ms stream period: 10 m/s, its limit 1 m/s
+    ((0.1, math.nan), ERROR_RANGE, "b"),       # not a number: outside every range
+    ((0.1, -1.5), ERROR_RANGE, "b"),           # beyond the controller's soft limit of -1 m (25 m/s, too)
+])
+def test_a_streamed_command_the_controller_refuses_is_a_fault_naming_the_joint_and_is_not_sent_again(
+        command, code, joint) -> None:
+    # A controller with soft limits [-1, 1] m and speed limits of 1 m/s, at rest at (0.1, -0.2), refuses the
+    # command streamed as a point; the hardware reports it naming the joint and the value asked, does not send
+    # the refused command again while it stays, and the robot holds. The next command is sent as a new
+    # trajectory from where the robot is.
+    double = ControllerDouble(max_velocities=(1.0, 1.0), ranges=((-1.0, 1.0), (-1.0, 1.0)))
+    hw = connected(double, max_velocities=(1.0, 1.0))
+    try:
+        hw.command_buffer(POSITION)[:] = command
+        fault = wait_for(lambda: (cycle(hw), hw.fault)[1], "the refusal")
+        assert f"the controller refused point 0 of the trajectory (FAILURE; STATUS error_code {code})" in fault
+        asked = asked_values(fault, JOINTS)[joint]
+        reported = float(np.float32(0.1 if joint == "a" else -0.2))
+        value = command[JOINTS.index(joint)]
+        if math.isnan(value):
+            assert math.isnan(asked[0]) and math.isnan(asked[1])
+        else:
+            assert asked == pytest.approx((value, abs(value - reported) / 0.02), rel=1e-6)
+        wait_for(lambda: (cycle(hw), hw.fault)[1] is None, "the fault over, the robot at rest")
+        cycle(hw, 100)  # five stream periods with the refused command
+        assert double.positions == pytest.approx([0.1, -0.2]) and not double.moving  # the robot held
+        hw.command_buffer(POSITION)[:] = [0.105, -0.2]  # 5 mm: 0.25 m/s over the period
+        wait_for(lambda: (cycle(hw), double.points[-1].positions[0] == pytest.approx(0.105))[1],
+                 "the next command at the controller")
+        # One sender, one connection: anything sent again would have arrived before the next command.
+        assert [p.sequence for p in double.points] == [0, 0]
+        assert double.points[0].positions[:2] == pytest.approx(command, nan_ok=True)
+    finally:
+        hw.close()
+        double.close()
 
 
 def test_stale_state_is_a_fault_until_state_flows_again(peer) -> None:
