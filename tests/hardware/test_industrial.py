@@ -1,33 +1,21 @@
-"""IndustrialHardware against a peer that speaks simple_message on loopback: what the PC side sends
-and how it reads the state, checked packet by packet. (The simulated industrial controller, a
-real robot in MuJoCo behind the same protocol, is tested with it in tests/industrial.)"""
+"""IndustrialHardware against a controller double that speaks simple_message on loopback
+(tests/hardware/controller_doubles.py, the "duration" kind): what the PC side sends and how it reads
+the state, checked packet by packet. (The simulated industrial controller, a real robot in MuJoCo
+behind the same protocol, is tested with it in tests/industrial.)"""
 
 from __future__ import annotations
 
 import functools
 import math
 import socket
-import threading
-import time
-from collections import deque
 
 import numpy as np
 import pytest
 
 from jointctl.hardware.industrial import HardwareUnreachable, IndustrialHardware
 from jointctl.hardware.interface import POSITION
-from jointctl.wire.simple_message import (
-    STOP_TRAJECTORY,
-    CommType,
-    JointPosition,
-    JointTrajPt,
-    PacketReader,
-    ReplyCode,
-    RobotStatus,
-    decode,
-    encode,
-    encode_reply,
-)
+from jointctl.wire.simple_message import STOP_TRAJECTORY
+from tests.hardware.controller_doubles import ERROR_RANGE, ERROR_TOO_FAST, ControllerDouble, asked_values
 from tests.waiting import wait_until
 
 JOINTS = ("a", "b")
@@ -37,215 +25,16 @@ TIMEOUT_S = 10.0
 wait_for = functools.partial(wait_until, timeout_s=TIMEOUT_S, every_s=0.005)
 
 
-class Peer:
-    """A controller double built from ROS-I's reference behaviour of a robot controller (facts §7-§10),
-    on loopback, in either byte order:
-
-    - the STATE port pushes JOINT_POSITION (the measured positions) and STATUS (TOPIC) every
-      ``period_s`` while ``publishing`` is set; STATUS ``in_motion`` is truthful (1 while points are
-      queued, a segment runs or the joints settle) unless the test forces ``in_motion``;
-    - the MOTION port takes JOINT_TRAJ_PT requests: sequence 0 starts a new trajectory (the queue is
-      forgotten), each point is queued and answered SUCCESS with its body echoed, the reply held
-      while ``capacity`` points wait (and while ``hold`` is set); STOP (-4) clears the queue, the
-      joints come to rest where they are, and is answered; points of a stopped trajectory (sequence
-      > 0) are answered FAILURE until a new one begins;
-    - motion of its own: the reference goes from where it is to each point over the point's
-      ``duration`` (linear, as ``industrial_robot_simulator`` interpolates), on the double's clock,
-      and the measured joints follow the reference through a first-order servo lag ``lag_s``.
-
-    Every point received is kept in ``points`` and, with the index of the motion connection it came
-    on, in ``received``; every state report sent is kept in ``reports`` as (time.time(), positions,
-    in_motion)."""
-
-    SETTLED = 1e-6  # |measured - reference| below which a joint has settled [rad or m]
-
-    def __init__(self, big_endian: bool = False, period_s: float = 0.01, positions=(0.1, -0.2),
-                 capacity: int = 8, lag_s: float = 0.05) -> None:
-        self.big_endian, self.period_s = big_endian, period_s
-        self.capacity, self.lag_s = capacity, lag_s
-        self.positions = list(positions)       # measured
-        self._reference = list(positions)      # the interpolator's output
-        self.step_per_report = 0.0  # added to the first joint after each JOINT_POSITION sent
-        self.in_motion: int | None = None  # None: truthful; else reported as it is
-        self.points: list[JointTrajPt] = []
-        self.received: list[tuple[int, JointTrajPt]] = []
-        self.reports: list[tuple[float, tuple[float, ...], int]] = []
-        self._queue: deque = deque()           # (target, duration) waiting
-        self._segment = None                   # (start, target, duration, elapsed)
-        self._accepting = True
-        self._clock = time.monotonic()
-        self.lock = threading.Condition()
-        self.hold = threading.Event()
-        self.publishing = threading.Event()
-        self.publishing.set()
-        self.closing = threading.Event()
-        self.servers = [socket.create_server(("127.0.0.1", 0)) for _ in range(2)]
-        self.motion_port, self.state_port = (s.getsockname()[1] for s in self.servers)
-        self.connections: list[socket.socket] = []
-        self.motion_connections: list[socket.socket] = []
-        self.threads = [threading.Thread(target=self._state, daemon=True),
-                        threading.Thread(target=self._motion, daemon=True)]
-        for thread in self.threads:
-            thread.start()
-
-    # -- the double's own motion (under self.lock) --------------------------------------------------
-    def _advance(self) -> None:
-        now = time.monotonic()
-        dt, self._clock = now - self._clock, now
-        left = dt
-        while left > 0:
-            if self._segment is None:
-                if not self._queue:
-                    break
-                target, duration = self._queue.popleft()
-                self._segment = [list(self._reference), target, duration, 0.0]
-            start, target, duration, elapsed = self._segment
-            take = min(left, duration - elapsed)
-            elapsed += take
-            left -= take
-            s = 1.0 if elapsed >= duration else elapsed / duration
-            self._reference = [a + (b - a) * s for a, b in zip(start, target)]
-            self._segment[3] = elapsed
-            if s >= 1.0:
-                self._segment = None
-        decay = math.exp(-dt / self.lag_s) if self.lag_s > 0 else 0.0
-        self.positions = [r + (q - r) * decay if abs(q - r) > self.SETTLED else r
-                          for q, r in zip(self.positions, self._reference)]
-        self.lock.notify_all()
-
-    @property
-    def moving(self) -> bool:
-        """The truthful in_motion: points queued, a segment running, or a joint not yet settled."""
-        with self.lock:
-            return bool(self._queue) or self._segment is not None or self.positions != self._reference
-
-    def place(self, positions) -> None:
-        """Put the joints at ``positions`` at rest (the robot moved by hand, say)."""
-        with self.lock:
-            self.positions, self._reference = list(positions), list(positions)
-
-    def _stop(self) -> None:
-        self._queue.clear()
-        self._segment = None
-        self._reference = list(self.positions)  # the joints come to rest where they are
-        self._accepting = False
-
-    # -- the sockets ----------------------------------------------------------------------------------
-    def _accept(self, server: socket.socket) -> socket.socket | None:
-        while not self.closing.is_set():
-            try:
-                server.settimeout(0.1)
-                conn, _ = server.accept()
-            except TimeoutError:
-                continue
-            except OSError:  # closed by close()
-                return None
-            self.connections.append(conn)
-            return conn
-        return None
-
-    def _state(self) -> None:
-        while (conn := self._accept(self.servers[1])) is not None:
-            try:
-                while not self.closing.is_set():
-                    with self.lock:
-                        self._advance()
-                        positions = tuple(self.positions)
-                    if self.publishing.is_set():
-                        in_motion = int(self.moving) if self.in_motion is None else self.in_motion
-                        conn.sendall(encode(JointPosition(0, positions), big_endian=self.big_endian)
-                                     + encode(RobotStatus(1, 0, 0, 0, in_motion, 2, 1), big_endian=self.big_endian))
-                        self.reports.append((time.time(), positions, in_motion))
-                        if self.step_per_report:
-                            with self.lock:
-                                self.positions[0] += self.step_per_report
-                                self._reference[0] = self.positions[0]
-                    self.closing.wait(self.period_s)
-            except OSError:
-                continue
-
-    def _motion(self) -> None:
-        while (conn := self._accept(self.servers[0])) is not None:
-            self.motion_connections.append(conn)
-            index = len(self.motion_connections) - 1
-            reader = PacketReader(big_endian=self.big_endian)
-            try:
-                while not self.closing.is_set():
-                    data = conn.recv(4096)
-                    if not data:
-                        break
-                    for packet in reader.feed(data):
-                        assert packet.comm_type == CommType.SERVICE_REQUEST
-                        point = decode(packet, big_endian=self.big_endian)
-                        self.points.append(point)
-                        self.received.append((index, point))
-                        code = self._on_point(point)
-                        while self.hold.is_set() and not self.closing.is_set():
-                            time.sleep(0.005)
-                        conn.sendall(encode_reply(packet, code, big_endian=self.big_endian))
-            except OSError:
-                continue
-            with self.lock:
-                self._stop()  # a client gone mid-motion: the robot stops
-
-    def _on_point(self, point: JointTrajPt) -> ReplyCode:
-        n = len(self.positions)
-        with self.lock:
-            self._advance()
-            if point.sequence == STOP_TRAJECTORY:
-                self._stop()
-                return ReplyCode.SUCCESS
-            if point.sequence == 0:
-                self._queue.clear()
-                self._segment = None  # the new trajectory goes on from where the reference is
-                self._accepting = True
-            elif not self._accepting:
-                return ReplyCode.FAILURE
-            while len(self._queue) >= self.capacity and not self.closing.is_set():
-                self.lock.wait(self.period_s)  # flow control: the reply waits for room
-                self._advance()
-            self._queue.append((list(point.positions[:n]), point.duration))
-            return ReplyCode.SUCCESS
-
-    def drop_motion(self) -> None:
-        """Close the motion connection only (the state goes on)."""
-        for conn in self.motion_connections:
-            _shut(conn)
-
-    def drop_connections(self) -> None:
-        for conn in self.connections:
-            _shut(conn)
-        self.connections.clear()
-
-    def close(self) -> None:
-        self.closing.set()
-        self.drop_connections()
-        for server in self.servers:
-            server.close()
-        for thread in self.threads:
-            thread.join(2.0)
-            assert not thread.is_alive(), "the double's thread did not end"
-
-
-def _shut(conn: socket.socket) -> None:
-    """Close ``conn`` with a FIN now: close() alone sends none while another thread blocks in recv on it."""
-    try:
-        conn.shutdown(socket.SHUT_RDWR)
-    except OSError:
-        pass
-    conn.close()
-
-
 @pytest.fixture
 def peer():
     # Little-endian only: the byte order is covered by the codec tests and, over a socket, by
     # tests/industrial/test_controller.py's streaming handshake in both orders.
-    p = Peer()
+    p = ControllerDouble()
     yield p
     p.close()
 
 
-def connected(peer: Peer, **kwargs) -> IndustrialHardware:
+def connected(peer: ControllerDouble, **kwargs) -> IndustrialHardware:
     hw = IndustrialHardware(JOINTS, robot_ip="127.0.0.1", motion_port=peer.motion_port,
                             state_port=peer.state_port, big_endian=peer.big_endian, **kwargs)
     hw.connect()
@@ -367,6 +156,44 @@ def test_the_controllers_full_buffer_holds_the_stream_back(peer) -> None:
         hw.close()
 
 
+@pytest.mark.parametrize("command, code, joint", [
+    ((0.3, -0.2), ERROR_TOO_FAST, "a"),       # 0.2 m in one 20 ms stream period: 10 m/s, its limit 1 m/s
+    ((0.1, math.nan), ERROR_RANGE, "b"),       # not a number: outside every range
+    ((0.1, -1.5), ERROR_RANGE, "b"),           # beyond the controller's soft limit of -1 m (25 m/s, too)
+])
+def test_a_streamed_command_the_controller_refuses_is_a_fault_naming_the_joint_and_is_not_sent_again(
+        command, code, joint) -> None:
+    # A controller with soft limits [-1, 1] m and speed limits of 1 m/s, at rest at (0.1, -0.2), refuses the
+    # command streamed as a point; the hardware reports it naming the joint and the value asked, does not send
+    # the refused command again while it stays, and the robot holds. The next command is sent as a new
+    # trajectory from where the robot is.
+    double = ControllerDouble(max_velocities=(1.0, 1.0), ranges=((-1.0, 1.0), (-1.0, 1.0)))
+    hw = connected(double, max_velocities=(1.0, 1.0))
+    try:
+        hw.command_buffer(POSITION)[:] = command
+        fault = wait_for(lambda: (cycle(hw), hw.fault)[1], "the refusal")
+        assert f"the controller refused point 0 of the trajectory (FAILURE; STATUS error_code {code})" in fault
+        asked = asked_values(fault, JOINTS)[joint]
+        reported = float(np.float32(0.1 if joint == "a" else -0.2))
+        value = command[JOINTS.index(joint)]
+        if math.isnan(value):
+            assert math.isnan(asked[0]) and math.isnan(asked[1])
+        else:
+            assert asked == pytest.approx((value, abs(value - reported) / 0.02), rel=1e-6)
+        wait_for(lambda: (cycle(hw), hw.fault)[1] is None, "the fault over, the robot at rest")
+        cycle(hw, 100)  # five stream periods with the refused command
+        assert double.positions == pytest.approx([0.1, -0.2]) and not double.moving  # the robot held
+        hw.command_buffer(POSITION)[:] = [0.105, -0.2]  # 5 mm: 0.25 m/s over the period
+        wait_for(lambda: (cycle(hw), double.points[-1].positions[0] == pytest.approx(0.105))[1],
+                 "the next command at the controller")
+        # One sender, one connection: anything sent again would have arrived before the next command.
+        assert [p.sequence for p in double.points] == [0, 0]
+        assert double.points[0].positions[:2] == pytest.approx(command, nan_ok=True)
+    finally:
+        hw.close()
+        double.close()
+
+
 def test_stale_state_is_a_fault_until_state_flows_again(peer) -> None:
     hw = connected(peer, stale_after_s=0.2)
     try:
@@ -400,7 +227,7 @@ def test_a_lost_motion_connection_is_a_fault_and_is_reopened(peer) -> None:
         command[0] = 0.2
         cycle(hw, 25)
         wait_for(lambda: hw.replies == 1, "the first point answered on the first connection")
-        assert [c for c, _ in peer.received] == [0]
+        assert [c for c, _, _ in peer.received] == [0]
         peer.drop_connections()  # a FIN to the hardware on both connections
         command[0] = 0.3
         cycle(hw, 25)  # a point for the dead connection: its failure is the fault
@@ -411,8 +238,8 @@ def test_a_lost_motion_connection_is_a_fault_and_is_reopened(peer) -> None:
         wait_for(lambda: (cycle(hw), hw.fault)[1] is None, "no fault once reopened")
         command[0] = 0.35
         cycle(hw, 25)
-        wait_for(lambda: any(c == 1 for c, _ in peer.received), "a point on the new connection")
-        on_new = [p for c, p in peer.received if c == 1]
+        wait_for(lambda: any(c == 1 for c, _, _ in peer.received), "a point on the new connection")
+        on_new = [p for c, _, p in peer.received if c == 1]
         assert on_new[0].sequence == 0 and on_new[0].positions[0] == pytest.approx(0.35)  # a new trajectory
         wait_for(lambda: hw.replies == 1 + len(on_new), "its reply, over the new connection")
     finally:

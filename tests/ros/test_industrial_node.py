@@ -1,6 +1,6 @@
 """jointctl serve --hardware industrial on a real ROS graph, against a simple_message controller
-double on loopback built from ROS-I's reference behaviour (tests/hardware/test_industrial.py's
-Peer): it interpolates to each point over the point's duration, its joints lag behind, it reports
+double on loopback built from ROS-I's reference behaviour (tests/hardware/controller_doubles.py, the
+"duration" kind): it interpolates to each point over the point's duration, its joints lag behind, it reports
 in_motion truthfully and holds replies while its buffer is full. The node's wiring, ROS-Industrial's
 names (joint_trajectory_action, the joint_path_command topic and service, stop_motion), stale state
 and an unreachable controller."""
@@ -16,7 +16,7 @@ import sys
 import pytest
 
 from jointctl.wire.simple_message import STOP_TRAJECTORY
-from tests.hardware.test_industrial import Peer
+from tests.hardware.controller_doubles import ControllerDouble
 from tests.ros.conftest import joint_positions, run, wait_for_topic
 from tests.waiting import wait_until
 
@@ -74,7 +74,7 @@ wait_for = functools.partial(wait_until, timeout_s=TIMEOUT_S, every_s=0.01)
 
 @pytest.fixture
 def peer():
-    p = Peer(positions=[START_M])
+    p = ControllerDouble("duration", [START_M])
     yield p
     p.close()
 
@@ -93,7 +93,7 @@ def follow(env, points) -> dict:
     return json.loads(client(env, "follow", points).stdout.strip().splitlines()[-1])
 
 
-def at_rest_at(peer: Peer, target: float) -> bool:
+def at_rest_at(peer: ControllerDouble, target: float) -> bool:
     """The double's joint has arrived at ``target`` (float32 on the wire) and settled."""
     return not peer.moving and peer.positions[0] == pytest.approx(target, abs=1e-6)
 
@@ -103,7 +103,7 @@ def at_rest_at(peer: Peer, target: float) -> bool:
 STILL_M = 1e-6
 
 
-def held_still(peer: Peer, reports: int = 20) -> tuple[float, float]:
+def held_still(peer: ControllerDouble, reports: int = 20) -> tuple[float, float]:
     """The double's position now and after ``reports`` more state reports (0.2 s at its 100 Hz)."""
     first = peer.positions[0]
     count = len(peer.reports)
@@ -217,7 +217,7 @@ def test_robot_ip_is_required_with_industrial_hardware(ros_env):
 
 def test_every_state_report_is_relayed_once_as_ros_is_robot_state_does(ros_env, serve, peer):
     serve_industrial(serve, peer)
-    peer.period_s = 0.05  # 20 Hz: 50 of the node's 1 ms cycles between reports
+    peer.state_period_s = 0.05  # 20 Hz: 50 of the node's 1 ms cycles between reports
     peer.step_per_report = 0.0009765625  # 2^-10 m, exact in float32: reports are told apart by their value
     seen = joint_positions(ros_env, "/joint_states", 40)
     steps = [b - a for a, b in zip(seen, seen[1:])]

@@ -22,7 +22,9 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   or JOINT_TRAJ_PT_FULL (``"full"``: time, positions, velocities, accelerations). In the streaming
   handshake each point is a SERVICE_REQUEST with sequence 0, 1, 2... (0: a new trajectory), sent by a
   thread once the previous one was answered (the controller's flow control); a FAILURE answer
-  abandons the rest and is a fault naming the point and the STATUS error code. In the download
+  abandons the rest and is a fault naming the point, the STATUS error code and what the point asked
+  of each joint (its position, and the speed its segment asks); a streamed command the controller
+  refused is not sent again until it changes. In the download
   handshake (``motion="download"``) every point is a TOPIC from sequence -1 to -3, executed by the
   controller after the last. :attr:`executing` stays True until every point was answered (or sent)
   and the controller reported the robot at rest. Outside a goal, :meth:`write` streams the position
@@ -31,9 +33,11 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   until the controller has answered and reports the robot at rest.
 - **Faults**: ``fault`` says why the robot cannot be commanded now (``None`` when it can): the
   state stale for ``stale_after_s`` (ROS-I's action server aborts after 1 s without feedback), or
-  a connection lost; and, for one :meth:`read`, that the controller refused a point (STATUS
-  ``in_error``): enough for the executor to abort its goal, after which the next motion starts a
-  new trajectory, which clears the controller's error. Lost connections are re-opened in the
+  a connection lost; and, from a refusal (a FAILURE answer, or STATUS ``in_error``) until a STATUS
+  after it says the robot is at rest, that the controller refused a point: the executor aborts its
+  goal and follows the robot to where the controller halted it (its joints may still be on their
+  way: servo lag), and holds there; the next motion starts a new trajectory, which clears the
+  controller's error. Lost connections are re-opened in the
   background every ``retry_s``; the fault clears when state flows again. The trajectory executor
   aborts its goal on a fault and refuses new ones while it lasts.
 
@@ -165,9 +169,16 @@ class IndustrialHardware(HardwareInterface):
         self._streaming = False  # a point was sent at the last stream tick
         self._sequence = 0
         self._refusal_reported = False  # the controller's current in_error was turned into a fault
+        #: (fault, time.monotonic() of the refusal) from a refusal reported until the controller reports the
+        #: robot at rest after it (the controller halts; its joints may still be on their way).
+        self._after_refusal: tuple[str, float] | None = None
+        #: The positions of the last point the controller refused: a streamed command still there is not
+        #: sent again (it would be refused again), until it changes.
+        self._refused_command: tuple[float, ...] | None = None
         self._stopping = False  # STOP sent, the robot not yet reported at rest since it was answered
         self._stop_answered_at: float | None = None  # time.monotonic() of the STOP's reply
         self._status_at = -float("inf")  # arrival of the last STATUS, time.monotonic() [s]
+        self._error_since = -float("inf")  # arrival of the first STATUS in error of the last error [s]
         self._outbox: queue.SimpleQueue = queue.SimpleQueue()
         self._closing = threading.Event()
         self._motion: socket.socket | None = None
@@ -179,7 +190,8 @@ class IndustrialHardware(HardwareInterface):
         self._unanswered = 0  # points of the trajectory in hand not yet answered (streaming) or sent
         self._done_at = -float("inf")  # time.monotonic() its last point was answered or sent
         self._rest_reports = 0  # STATUS reports since then saying the robot is not in motion
-        self._refused_point: tuple[int, float] | None = None  # (sequence, time.monotonic()) of a FAILURE
+        #: (sequence, time.monotonic(), what it asked) of a point answered FAILURE, until reported.
+        self._refused_point: tuple[int, float, str] | None = None
         self._awaiting_reply_since: float | None = None  # time.monotonic() a SERVICE_REQUEST was sent, unanswered
         self._trajectory_end: list[float] | None = None  # the last point of the trajectory in hand
         #: JOINT_POSITION reports received when ``position`` was last refreshed (by :meth:`read`).
@@ -269,6 +281,8 @@ class IndustrialHardware(HardwareInterface):
                 self._reported, self._reported_at = positions, now
                 self._state_reports += 1
         elif isinstance(message, RobotStatus):
+            if message.in_error == TRISTATE_TRUE and (self.status is None or self.status.in_error != TRISTATE_TRUE):
+                self._error_since = now
             self.status = message
             self._status_at = now
             if message.in_motion == TRISTATE_TRUE:
@@ -306,13 +320,13 @@ class IndustrialHardware(HardwareInterface):
             try:
                 if item == ():
                     self._check_motion_alive()
-                else:  # (comm type, point, the trajectory it belongs to)
-                    comm, point, trajectory = item
+                else:  # (comm type, point, the trajectory it belongs to, where its segment starts)
+                    comm, point, trajectory, start = item
                     if comm == CommType.TOPIC:  # sent, no reply to wait for
                         self._motion.sendall(encode(point, comm, big_endian=self.big_endian))
                         self._point_done(trajectory)
                     else:
-                        self._request(point, trajectory)
+                        self._request(point, trajectory, start)
             except (OSError, ConnectionError, MalformedPacket) as exc:
                 if self._closing.is_set():
                     return
@@ -336,17 +350,19 @@ class IndustrialHardware(HardwareInterface):
         if readable and not sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT):
             raise ConnectionError("the controller closed the motion connection")
 
-    def _request(self, point: JointTrajPt | JointTrajPtFull, trajectory: int) -> None:
-        """Send one point as a SERVICE_REQUEST and wait for the reply (the flow control). A FAILURE
-        reply to a trajectory's point abandons the rest of that trajectory and is reported as a fault."""
+    def _request(self, point: JointTrajPt | JointTrajPtFull, trajectory: int, start: Sequence[float] | None) -> None:
+        """Send one point (its segment starting at ``start``) as a SERVICE_REQUEST and wait for the reply
+        (the flow control). A FAILURE reply to a trajectory's point abandons the rest of that trajectory
+        and is reported as a fault naming what the point asked."""
         sock = self._motion
         self._awaiting_reply_since = time.monotonic()
         try:
-            self._await_reply(sock, point, trajectory)
+            self._await_reply(sock, point, trajectory, start)
         finally:
             self._awaiting_reply_since = None
 
-    def _await_reply(self, sock: socket.socket, point: JointTrajPt | JointTrajPtFull, trajectory: int) -> None:
+    def _await_reply(self, sock: socket.socket, point: JointTrajPt | JointTrajPtFull, trajectory: int,
+                     start: Sequence[float] | None) -> None:
         """Send ``point`` as a SERVICE_REQUEST on ``sock`` and handle its reply (see :meth:`_request`)."""
         sock.sendall(encode(point, CommType.SERVICE_REQUEST, big_endian=self.big_endian))
         reader = PacketReader(big_endian=self.big_endian)
@@ -366,16 +382,34 @@ class IndustrialHardware(HardwareInterface):
                 elif packet.reply_code != ReplyCode.SUCCESS:
                     self._drop_outbox()
                     self._unanswered = 0
-                    self._refused_point = (point.sequence, time.monotonic())
+                    self._refused_point = (point.sequence, time.monotonic(), self._asked(point, start))
+                    self._refused_command = tuple(point.positions[: len(self.joint_names)])
                 else:
                     self._point_done(trajectory)
                 return
 
+    def _asked(self, point: JointTrajPt | JointTrajPtFull, start: Sequence[float] | None) -> str:
+        """What ``point`` asked of each joint: its position and the speed [per s] it asks, |Δq| from
+        ``start`` over the segment's duration (JOINT_TRAJ_PT) or its velocity (JOINT_TRAJ_PT_FULL)."""
+        items = []
+        for i, name in enumerate(self.joint_names):
+            q = point.positions[i]
+            if isinstance(point, JointTrajPtFull):
+                speed = abs(point.velocities[i])
+            elif start is None:
+                speed = None
+            else:
+                speed = abs(q - start[i]) / point.duration if point.duration > 0 else math.inf
+            items.append(f"{name} {q:.6g}" + ("" if speed is None else f" at {speed:.6g}/s"))
+        return "it asked " + ", ".join(items)
+
     def _reply_due(self) -> bool:
-        """A point awaits its reply, sent less than ``ERROR_CODE_WAIT_S`` ago: an error STATUS now is most
-        likely that point's refusal, and its FAILURE reply, which names the point, is on its way."""
+        """A point awaits its reply, and it was sent, or the controller's error first reported, less than
+        ``ERROR_CODE_WAIT_S`` ago: the error is most likely that point's refusal, and its FAILURE reply, which
+        names the point, is on its way (a controller may hold the reply for its flow control, then refuse the
+        point when it takes it: the error STATUS then comes long after the request)."""
         since = self._awaiting_reply_since
-        return since is not None and time.monotonic() < since + ERROR_CODE_WAIT_S
+        return since is not None and time.monotonic() < max(since, self._error_since) + ERROR_CODE_WAIT_S
 
     def _point_done(self, trajectory: int) -> None:
         """A point of trajectory number ``trajectory`` was answered (streaming) or sent (download):
@@ -407,7 +441,7 @@ class IndustrialHardware(HardwareInterface):
         self._stopping = True
         self.fault = STOPPING  # at once: nothing more is streamed in this cycle
         self._outbox.put((CommType.SERVICE_REQUEST, JointTrajPt(STOP_TRAJECTORY, (0.0,) * MAX_JOINTS, 0.0, 0.0),
-                          self._trajectory))
+                          self._trajectory, None))
         self._last_sent = None  # the next motion starts a new trajectory from where the robot stops
 
     def _stopped(self, status: RobotStatus | None) -> bool:
@@ -439,34 +473,45 @@ class IndustrialHardware(HardwareInterface):
             # position as its hold too: when it clears, the command is the rest and nothing is sent.
             self._stopping = False
             self._last_sent = list(self.position)
+        after_refusal = self._after_refusal
+        if after_refusal is not None and (status is None or (self._status_at > after_refusal[1]
+                                                             and status.in_motion != TRISTATE_TRUE)):
+            # At rest after the refusal (or no STATUS to say otherwise). The fault lasts this one more read,
+            # so that the executor takes this position as its hold: when it clears, nothing is sent.
+            self._after_refusal = None
         refused_point = self._refused_point
         # The error code is a STATUS in error read after the FAILURE reply (a STATUS read after it but
         # sent before the refusal, still without the error, does not end the wait: the two ports race).
         coded = refused_point is not None and refused and self._status_at > refused_point[1]
         if refused_point is not None and (coded or time.monotonic() > refused_point[1] + ERROR_CODE_WAIT_S):
-            # Reported for one read, as a refusal STATUS is: the goal aborts; the next motion starts
-            # a new trajectory (sequence 0), which clears the controller's error.
+            # Reported until the controller reports the robot at rest: the goal aborts, the executor follows
+            # the robot to where it comes to rest; the next motion starts a new trajectory (sequence 0), which
+            # clears the controller's error.
             self._refused_point = None
             self._refusal_reported = True
             self._last_sent = None
             code = f"STATUS error_code {status.error_code}" if coded else "no error code reported"
-            self.fault = f"the controller refused point {refused_point[0]} of the trajectory (FAILURE; {code})"
+            self.fault = (f"the controller refused point {refused_point[0]} of the trajectory (FAILURE; {code}): "
+                          f"{refused_point[2]}")
+            self._after_refusal = (self.fault, refused_point[1])
         elif self._motion_lost is not None:
             self.fault = self._motion_lost
         elif self._stopping or came_to_rest:
             self.fault = STOPPING
         elif refused and not self._refusal_reported and refused_point is None and not self._reply_due():
             # (A refused point's own FAILURE reply, due or come, is reported above, naming the point.)
-            # Reported for one read: the trajectory in progress is aborted; the next motion starts a
-            # new trajectory (sequence 0), which clears the controller's error.
+            # Reported until the controller reports the robot at rest, as above.
             self._refusal_reported = True
             self._last_sent = None
             self.fault = f"the controller refused a point (STATUS error_code {status.error_code})"
+            self._after_refusal = (self.fault, self._status_at)
         elif self._state is None or age > self.stale_after_s:
             self.fault = (f"no joint state from {self.robot_ip}:{self.state_port} for {age:.1f} s"
                           if reported is not None else "no joint state yet")
             if age > self.stale_after_s:
                 self.velocity[:] = [0.0] * len(self.velocity)
+        elif after_refusal is not None:
+            self.fault = after_refusal[0]
         else:
             self.fault = None
         if self.fault is not None:
@@ -506,6 +551,7 @@ class IndustrialHardware(HardwareInterface):
             return
         self._trajectory += 1
         self._drop_outbox()
+        self._refused_command = None
         if self.motion == "download":
             if len(points) == 1:
                 points = points * 2
@@ -515,10 +561,12 @@ class IndustrialHardware(HardwareInterface):
         else:
             sequences = list(range(len(points)))
         self._unanswered = len(points)
+        start = tuple(base)  # the first segment starts where the executor's command is: its plan's start
         for seq, point in zip(sequences, points):
             message = self._message(seq, point)
             comm = CommType.TOPIC if self.motion == "download" else CommType.SERVICE_REQUEST
-            self._outbox.put((comm, message, self._trajectory))
+            self._outbox.put((comm, message, self._trajectory, start))
+            start = point.positions
         self._last_sent = list(points[-1].positions)
         self._trajectory_end = list(points[-1].positions)
         self._sequence = len(points)
@@ -565,6 +613,12 @@ class IndustrialHardware(HardwareInterface):
         if command == self._last_sent or self.fault is not None:
             self._streaming = False  # a tick without a point: the motion (if any) has ended
             return
+        refused = self._refused_command
+        if refused is not None:
+            if all(q == r or (math.isnan(q) and math.isnan(r)) for q, r in zip(command, refused)):
+                self._streaming = False  # the command the controller refused: not sent again
+                return
+            self._refused_command = None
         if self._last_sent is None and all(abs(q - p) <= 1e-9 for q, p in zip(command, self.position)):
             # Holding where the robot is (after a refusal, the executor follows the measured position): no
             # motion, nothing to send; a motion from here starts a new trajectory (the robot is at rest).
@@ -578,7 +632,8 @@ class IndustrialHardware(HardwareInterface):
         point = WirePoint((self._sequence + 1) * self.stream_period_s, tuple(command), tuple(velocities), None,
                           speed_fraction(velocities, self.max_velocities, default=self.default_speed),
                           self.stream_period_s)
-        self._outbox.put((CommType.SERVICE_REQUEST, self._message(self._sequence, point), self._trajectory))
+        self._outbox.put((CommType.SERVICE_REQUEST, self._message(self._sequence, point), self._trajectory,
+                          tuple(previous)))
         self._sequence += 1
         self._last_sent = list(command)
         self._streaming = True
