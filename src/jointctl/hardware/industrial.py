@@ -10,7 +10,10 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   between the last two reports (JOINT_POSITION carries no velocity), ``effort`` zero (not
   reported). ``status`` is the last STATUS (``in_motion``, ``in_error``...); ``in_motion`` its
   ``in_motion`` as a bool (None when unknown): a goal succeeds only once the controller says the
-  robot is not in motion, as ROS-I's action server requires.
+  robot is not in motion, as ROS-I's action server requires. Listeners added with
+  :meth:`add_state_listener` get every JOINT_POSITION and STATUS as it is read, on the reader's
+  thread (ROS-I's ``robot_state`` relays each one: several read between two loop cycles are each
+  relayed, not only the last).
 - **Commands**: each joint has a ``position`` command interface only (the controller servos its
   joints; there is no PID on this side). The hardware *takes trajectories*: a trajectory executor
   hands it each goal (:meth:`execute_trajectory`), sent as ROS-I's client sends it
@@ -50,7 +53,7 @@ import select
 import socket
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from jointctl.errors import JointCtlError, MalformedPacket
 from jointctl.hardware.interface import POSITION, HardwareInterface
@@ -184,6 +187,7 @@ class IndustrialHardware(HardwareInterface):
         self._trajectory_end: list[float] | None = None  # the last point of the trajectory in hand
         #: JOINT_POSITION reports received when ``position`` was last refreshed (by :meth:`read`).
         self.reports_read = 0
+        self._state_listeners: list[tuple[Callable | None, Callable | None]] = []
 
     # -- connection ------------------------------------------------------------------------------------
     def connect(self, *, first_state_timeout_s: float = 5.0) -> None:
@@ -251,6 +255,13 @@ class IndustrialHardware(HardwareInterface):
                 sock.close()
                 self._state = None
 
+    def add_state_listener(self, positions: Callable[[tuple[float, ...]], None] | None = None,
+                           status: Callable[[RobotStatus], None] | None = None) -> None:
+        """Call ``positions(reported positions)`` for every JOINT_POSITION (the first ``len(joint_names)``
+        joints, [rad or m]) and ``status(message)`` for every STATUS, as each is read: on the state
+        reader's thread, before the next one is read. A listener must return quickly and not raise."""
+        self._state_listeners.append((positions, status))
+
     def _on_state(self, packet) -> None:
         if packet.comm_type != CommType.TOPIC:
             return
@@ -268,6 +279,9 @@ class IndustrialHardware(HardwareInterface):
                     self._velocity = [(q - p) / dt for q, p in zip(positions, previous)]
                 self._reported, self._reported_at = positions, now
                 self._state_reports += 1
+            for listener, _ in self._state_listeners:
+                if listener is not None:
+                    listener(positions)
         elif isinstance(message, RobotStatus):
             self.status = message
             self._status_at = now
@@ -275,6 +289,9 @@ class IndustrialHardware(HardwareInterface):
                 self._rest_reports = 0
             elif now > self._done_at:
                 self._rest_reports += 1
+            for _, listener in self._state_listeners:
+                if listener is not None:
+                    listener(message)
 
     def _reconnect(self, which: str) -> bool:
         """Re-open ``which`` connection, trying every ``retry_s``; False when closing."""
