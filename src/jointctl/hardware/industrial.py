@@ -37,8 +37,11 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   a connection lost; and, for one :meth:`read`, that the controller refused a point (STATUS
   ``in_error``): enough for the executor to abort its goal, after which the next motion starts a
   new trajectory, which clears the controller's error. Lost connections are re-opened in the
-  background every ``retry_s``; the fault clears when state flows again. The trajectory executor
-  aborts its goal on a fault and refuses new ones while it lasts.
+  background every ``retry_s`` (:attr:`connected` says when both are open); the fault clears when
+  state flows again. A lost motion connection is a fault for at least one :meth:`read`, also when
+  it was re-opened before that read came (the loop descheduled longer than ``retry_s``): the
+  controller dropped the trajectory in hand with it, and the goal it belonged to must abort. The
+  trajectory executor aborts its goal on a fault and refuses new ones while it lasts.
 
 Time: :meth:`advance` counts loop time (the controller runs on its own clock). Byte order:
 little-endian unless ``big_endian`` (the ``_bswap`` drivers). Joint ``i`` of a packet is joint
@@ -175,7 +178,10 @@ class IndustrialHardware(HardwareInterface):
         self._closing = threading.Event()
         self._motion: socket.socket | None = None
         self._state: socket.socket | None = None
-        self._motion_lost: str | None = None
+        self._motion_lost: str | None = None  # why the motion connection is down, until re-opened
+        self._motion_losses = 0  # motion connections lost so far ...
+        self._motion_losses_reported = 0  # ... and when read() last reported one as the fault
+        self._last_motion_loss = ""  # what the last loss said
         self._threads: list[threading.Thread] = []
         self.replies = 0  # points the controller acknowledged
         self._trajectory = 0  # the number of the trajectory in hand (each handed over or stopped: +1)
@@ -333,7 +339,9 @@ class IndustrialHardware(HardwareInterface):
             except (OSError, ConnectionError, MalformedPacket) as exc:
                 if self._closing.is_set():
                     return
-                self._motion_lost = f"lost the motion connection to {self.robot_ip}:{self.motion_port} ({exc})"
+                self._last_motion_loss = f"lost the motion connection to {self.robot_ip}:{self.motion_port} ({exc})"
+                self._motion_lost = self._last_motion_loss
+                self._motion_losses += 1
                 if self._motion is not None:
                     self._motion.close()
                 self._motion = None
@@ -456,6 +464,9 @@ class IndustrialHardware(HardwareInterface):
             # position as its hold too: when it clears, the command is the rest and nothing is sent.
             self._stopping = False
             self._last_sent = list(self.position)
+        losses, motion_lost = self._motion_losses, self._motion_lost
+        if motion_lost is None and losses != self._motion_losses_reported:
+            motion_lost = self._last_motion_loss  # lost and re-opened since the last read: reported once
         refused_point = self._refused_point
         # The error code is a STATUS in error read after the FAILURE reply (a STATUS read after it but
         # sent before the refusal, still without the error, does not end the wait: the two ports race).
@@ -468,8 +479,9 @@ class IndustrialHardware(HardwareInterface):
             self._last_sent = None
             code = f"STATUS error_code {status.error_code}" if coded else "no error code reported"
             self.fault = f"the controller refused point {refused_point[0]} of the trajectory (FAILURE; {code})"
-        elif self._motion_lost is not None:
-            self.fault = self._motion_lost
+        elif motion_lost is not None:
+            self.fault = motion_lost
+            self._motion_losses_reported = losses
         elif self._stopping or came_to_rest:
             self.fault = STOPPING
         elif refused and not self._refusal_reported and refused_point is None and not self._reply_due():
@@ -606,6 +618,11 @@ class IndustrialHardware(HardwareInterface):
 
     def advance(self, period_s: float) -> None:
         self._time_s += period_s
+
+    @property
+    def connected(self) -> bool:
+        """Both connections are open now (each is re-opened in the background after a loss)."""
+        return self._state is not None and self._motion is not None and self._motion_lost is None
 
     @property
     def state_reports(self) -> int:
