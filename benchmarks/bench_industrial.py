@@ -8,7 +8,8 @@ round trips per second on the same connection (what the socket and the framing a
 *State latency*: a simple_message peer here reports JOINT_POSITION at 50 Hz (each a distinct value,
 its send time kept) to ``jointctl serve one_dof --hardware industrial``; a ROS subscriber process
 records when each value arrives on ``/joint_states``: p50/p99 of arrival minus send. Baseline: the
-serve loop's period (1 ms: a report waits at most one cycle before it is relayed).
+serve loop's period (1 ms: what a report relayed at the next cycle would wait at most; the node
+relays each as it reads it).
 *Tracking*: the arm's pre-pose (zeros -> [0, 1, 0, -2, 0, 1, 0], the chapter's 13.33 s) through
 the bridge (the executor streaming 50 Hz points to ``jointctl controller arm7dof``, 50 Hz state)
 and in-process, both as the chapter's streamer does it (linear points at 50 Hz, positions only:

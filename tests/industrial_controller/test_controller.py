@@ -32,6 +32,7 @@ from jointctl.wire.simple_message import (
     encode,
 )
 from jointctl.scenario.spec import scenario_for_robot
+from tests.ports import check_free, restart_safe_ports
 from tests.waiting import wait_until
 
 TIMEOUT_S = 20.0
@@ -332,6 +333,47 @@ def test_a_goal_downloaded_whole_is_executed_by_the_controller(controller) -> No
         assert handle.status is GoalStatus.SUCCEEDED, handle.result
         assert joint1(controller) == pytest.approx(-0.3, abs=0.01)
         assert controller.program.refused == 0
+    finally:
+        hw.close()
+
+
+def test_a_controller_restarted_between_two_reads_is_a_fault_for_one_read() -> None:
+    """A controller that goes away and comes back (a cabinet rebooted) while jointctl's loop reads
+    nothing (descheduled longer than retry_s): both connections re-open in the background, and the
+    lost motion connection is still the fault of the next read (the controller dropped the trajectory
+    in hand: the goal must abort); then no fault, with state from the new controller."""
+    motion_port, state_port = restart_safe_ports(2)  # no port the OS hands out: free for the restart
+
+    def start() -> tuple[SimulatedController, threading.Thread]:
+        ctl = SimulatedController(scenario_for_robot("one_dof", "servo"), host="127.0.0.1",
+                                  motion_port=motion_port, state_port=state_port)
+        thread = threading.Thread(target=ctl.run, daemon=True)
+        thread.start()
+        return ctl, thread
+
+    first, thread = start()
+    hw = IndustrialHardware(["joint1"], robot_ip="127.0.0.1", motion_port=motion_port, state_port=state_port,
+                            retry_s=0.05)
+    hw.connect()
+    try:
+        hw.read()
+        assert hw.fault is None and hw.connected
+        first.close()
+        thread.join(5.0)
+        wait_for(lambda: not hw.connected, "the hardware to see the controller gone")
+        check_free(motion_port, state_port)
+        second, thread = start()
+        try:
+            reports = hw.state_reports
+            wait_for(lambda: hw.connected and second.motion_clients == 1 and hw.state_reports > reports,
+                     "both connections re-opened to the new controller, its state read")
+            hw.read()  # the first read since the controller went away
+            assert hw.fault is not None and f"lost the motion connection to 127.0.0.1:{motion_port}" in hw.fault
+            hw.read()
+            assert hw.fault is None and hw.position[0] == pytest.approx(START_M, abs=1e-3)
+        finally:
+            second.close()
+            thread.join(5.0)
     finally:
         hw.close()
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.ports import check_free, restart_safe_ports
 from tests.processes import stop_process
 from tests.ros.conftest import Master, Probe, printed_until, run, stop_and_read, wait_until
 
@@ -167,10 +168,11 @@ def test_a_nan_velocity_command_is_refused_and_the_joint_keeps_its_state(ros_env
 
 @pytest.fixture
 def own_master(ros_env):
-    """A master of the test's own (not the module's), so that the test can kill and restart it, and
-    a probe node on it (to see the node serve)."""
+    """A master of the test's own (not the module's), so that the test can kill and restart it on its
+    port (one the OS hands out to no one by itself: tests/ports.py), and a probe node on it (to see the
+    node serve)."""
     env = dict(ros_env)
-    masters = [Master(env)]
+    masters = [Master(env, port=restart_safe_ports(1)[0])]
     probe = Probe(env)
     yield env, masters[0].port, masters, probe
     probe.close()
@@ -191,6 +193,7 @@ def test_a_restarted_master_ends_the_node_with_a_clear_message(own_master):
     try:
         probe.message(JOINT_STATES, timeout_s=60)
         masters[0].stop(kill=True)
+        check_free(port)
         masters.append(Master(env, port=port))
         output, _ = node.communicate(timeout=15)
         assert node.returncode == 2

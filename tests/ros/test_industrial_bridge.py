@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.ports import check_free, restart_safe_ports
 from tests.ros.conftest import joint_positions, run, wait_for_topic
 from tests.ros.test_across_hosts import ADDR_A, ADDR_B, _env, _in, hosts  # noqa: F401  (a fixture)
 from tests.waiting import wait_until as poll_until
@@ -134,26 +135,36 @@ def test_a_cancel_over_ros_is_a_stop_at_the_controller(ros_env, serve, controlle
 
 
 def test_a_controller_lost_mid_goal_aborts_it_and_is_found_again(ros_env, serve, controllers) -> None:
-    process, motion, state = controllers(ros_env, "one_dof")  # on ports the OS picked, reused below
+    # Ports the OS hands out to no one by itself (tests/ports.py): still free for the restart below,
+    # where one the OS had picked could meanwhile be any connection's local port.
+    motion, state = restart_safe_ports(2)
+    process, _, _ = controllers(ros_env, "one_dof", motion_port=motion, state_port=state)
     serve_against(serve, "one_dof", motion, state)
     client = subprocess.Popen([sys.executable, CLIENT, "follow", SERVER,
                                json.dumps({"joint_names": ["joint1"], "points": [[8.0, [-0.1]]]})],
                               env=ros_env, stdout=subprocess.PIPE, text=True)
     wait_until(lambda: positions(ros_env)[0] > -0.48, "the goal moving the robot")
     process.kill()  # the controller dies mid-goal
+    process.wait(10)  # and is gone, its sockets with it
     out, _ = client.communicate(timeout=60)
     done = json.loads(out.strip().splitlines()[-1])
     assert done["state"] == "ABORTED", done
     assert "the hardware cannot be commanded" in done["text"]
     assert "127.0.0.1" in done["text"]
-    # Back, on the same ports (free since the kill: the listening sockets went with the process).
+    # Back, on the same ports.
+    check_free(motion, state)
     controllers(ros_env, "one_dof", motion_port=motion, state_port=state)
-    deadline = time.monotonic() + 30
-    while True:  # the node reconnects by itself; goals are refused until the state flows again
+    # The node reconnects by itself: the new controller's state (at its start, -0.5 m) is relayed. Goals
+    # are refused until the loop has seen both connections open again; then one succeeds.
+    wait_until(lambda: positions(ros_env)[0] == pytest.approx(-0.5, abs=1e-3),
+               "the restarted controller's state relayed")
+
+    def succeeded():
         done = follow(ros_env, ["joint1"], [[2.0, [-0.3]]])
-        if done["state"] == "SUCCEEDED":
-            break
-        assert done["state"] == "REJECTED" and time.monotonic() < deadline, done  # (each try takes ~1 s)
+        assert done["state"] in ("SUCCEEDED", "REJECTED"), done
+        return done["state"] == "SUCCEEDED"
+
+    wait_until(succeeded, "a goal to succeed on the restarted controller")
     assert positions(ros_env)[0] == pytest.approx(-0.3, abs=0.01)
 
 

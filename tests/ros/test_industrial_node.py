@@ -215,10 +215,52 @@ def test_robot_ip_is_required_with_industrial_hardware(ros_env):
     assert result.returncode == 2 and "--robot-ip: is required with --hardware industrial" in result.stderr
 
 
-def test_every_state_report_is_relayed_once_as_ros_is_robot_state_does(ros_env, serve, peer):
-    serve_industrial(serve, peer)
-    peer.state_period_s = 0.05  # 20 Hz: 50 of the node's 1 ms cycles between reports
-    peer.step_per_report = 0.0009765625  # 2^-10 m, exact in float32: reports are told apart by their value
-    seen = joint_positions(ros_env, "/joint_states", 40)
-    steps = [b - a for a, b in zip(seen, seen[1:])]
-    assert steps == pytest.approx([2**-10] * len(steps), abs=1e-7)  # none skipped, none twice
+class BurstPeer(ControllerDouble):
+    """The double whose next ``burst`` state reports leave back to back (no wait between them, so the
+    node reads them within one of its 1 ms cycles, as it would after being descheduled), and then one
+    every ``every_s`` again. (``state_period_s`` is read once after each report sent.)"""
+
+    every_s = 0.05
+    burst = 0
+
+    @property
+    def state_period_s(self) -> float:
+        if self.burst > 0:
+            self.burst -= 1
+            return 0.0
+        return self.every_s
+
+    @state_period_s.setter
+    def state_period_s(self, value: float) -> None:
+        self.every_s = value
+
+
+def test_every_state_report_is_relayed_once_as_ros_is_robot_state_does(ros_env, serve, probe):
+    """ROS-I's robot_state publishes joint_states and feedback_states for each JOINT_POSITION it reads.
+    Each report of the double carries its own value (2^-10 m more than the one before, exact in
+    float32); 20 of them sent back to back, between two of the node's cycles, are 20 messages too."""
+    peer = BurstPeer("duration", [START_M], state_period_s=0.05)  # 20 Hz between the bursts
+    try:
+        serve_industrial(serve, peer)
+        step = peer.step_per_report = 2**-10
+        fields = {"/joint_states": lambda m: m["position"][0],
+                  "/feedback_states": lambda m: m["actual"]["positions"][0]}
+        cursors = {topic: probe.cursor(topic) for topic in fields}
+        # The probe is connected once a report sent after the cursor has come through.
+        wait_for(lambda: all(probe.since(t, c) for t, c in cursors.items()), "a relayed report on both topics")
+        sent = len(peer.reports)
+        peer.burst = 20
+        wait_for(lambda: len(peer.reports) >= sent + 20 + 2, "the burst and two reports after it")
+        burst = [q for _, (q,), _ in peer.reports[sent:sent + 20]]
+        last = peer.reports[-1][1][0]  # the value of the last report sent so far
+        for topic, value in fields.items():
+            def relayed(topic=topic, value=value):
+                values = [value(m) for m in probe.since(topic, cursors[topic])]
+                return values if values[-1] == last else None
+
+            values = wait_for(relayed, f"the last report sent on {topic}")
+            # One message per report, in order, from before the burst to the last: none skipped, none twice.
+            assert [round((b - a) / step, 6) for a, b in zip(values, values[1:])] == [1.0] * (len(values) - 1)
+            assert values[0] < burst[0]
+    finally:
+        peer.close()

@@ -15,7 +15,9 @@ served robot per module:
 
 Run as a script (``python test_robot_description.py client JOINT_STATES STEPS_JSON``) this file is
 the client: one rospy node that records joint states, /tf, /tf_static, the markers and
-model_states while it runs the steps, printing one JSON line.
+model_states while it runs the steps, printing one JSON line. It waits for what it records, never a
+fixed time: until its subscribers are connected and recording, until the joints have moved so far
+and so many /tf messages are in, until a marker shows the object at rest or deleted.
 """
 
 from __future__ import annotations
@@ -77,28 +79,83 @@ def _client(joint_states: str, steps: list[dict]) -> dict:
                 rec[key].append(item)
         return callback
 
-    rospy.Subscriber(joint_states, JointState, on("joint_states", lambda m: [
-        m.header.stamp.to_nsec(), list(m.name), list(m.position)]), queue_size=1000)
-    rospy.Subscriber("/tf", TFMessage, on("tf", transforms), queue_size=1000)
-    rospy.Subscriber("/tf_static", TFMessage, on("tf_static", transforms), queue_size=100)
-    rospy.Subscriber(MARKERS, MarkerArray, on("markers", lambda m: [
-        [k.header.stamp.to_nsec(), k.header.frame_id, k.ns, k.id, k.action, k.type, k.text, pose(k.pose),
-         [k.scale.x, k.scale.y, k.scale.z]] for k in m.markers]), queue_size=1000)
-    rospy.Subscriber("/gazebo/model_states", ModelStates, on("model_states", lambda m: [
-        list(m.name), [pose(p) for p in m.pose]]), queue_size=1000)
+    subscribers = [
+        rospy.Subscriber(joint_states, JointState, on("joint_states", lambda m: [
+            m.header.stamp.to_nsec(), list(m.name), list(m.position)]), queue_size=1000),
+        rospy.Subscriber("/tf", TFMessage, on("tf", transforms), queue_size=1000),
+        rospy.Subscriber("/tf_static", TFMessage, on("tf_static", transforms), queue_size=100),
+        rospy.Subscriber(MARKERS, MarkerArray, on("markers", lambda m: [
+            [k.header.stamp.to_nsec(), k.header.frame_id, k.ns, k.id, k.action, k.type, k.text, pose(k.pose),
+             [k.scale.x, k.scale.y, k.scale.z]] for k in m.markers]), queue_size=1000),
+        rospy.Subscriber("/gazebo/model_states", ModelStates, on("model_states", lambda m: [
+            list(m.name), [pose(p) for p in m.pose], [[t.linear.x, t.linear.y, t.linear.z] for t in m.twist]]),
+            queue_size=1000)]
     publishers = {}
     out = []
+
+    def wait(condition, what: str, timeout_s: float = 60.0):
+        """Poll ``condition`` (under the record's lock) until it holds; exit saying ``what`` otherwise."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            with lock:
+                if condition():
+                    return
+            if time.monotonic() > deadline:
+                with lock:
+                    counts = {key: len(items) for key, items in rec.items()}
+                raise SystemExit(f"waited {timeout_s:g} s for {what}; recorded {counts}")
+            time.sleep(0.02)
+
+    def joint_values(name):
+        return [positions[names.index(name)] for _, (_, names, positions) in rec["joint_states"] if name in names]
+
+    def marker_id(name):
+        """The marker id of object ``name`` (its label's text is the name), or None."""
+        return next((m[3] for _, markers in rec["markers"] for m in markers
+                     if m[2] == "spawned_object_names" and m[6] == name), None)
+
+    def holds(until: dict) -> bool:
+        """Whether every condition of an ``until`` step holds on what is recorded so far."""
+        for name, value in until.get("above", {}).items():
+            if not joint_values(name) or not joint_values(name)[-1] > value:
+                return False
+        for name, span in until.get("moved", {}).items():
+            values = joint_values(name)
+            if not values or max(values) - min(values) < span:
+                return False
+        if len(rec["tf"]) < until.get("tf", 0):
+            return False
+        if "at_rest" in until:  # {"name", "z", "tol", "count"}: so many shape markers, the last five at z
+            rest = until["at_rest"]
+            shown = [m for _, markers in rec["markers"] for m in markers
+                     if m[2] == "spawned_objects" and m[3] == marker_id(rest["name"]) and m[4] == 0]
+            if len(shown) < rest["count"] or any(abs(m[7][2] - rest["z"]) > rest["tol"] for m in shown[-5:]):
+                return False
+        if "deleted" in until:  # its shape's and its label's DELETE markers have come, then `after`
+            # model_states messages (loop time at 100 Hz: a marker showing it again would be among them)
+            deleted = {m[2]: t for t, markers in rec["markers"] for m in markers
+                       if m[3] == marker_id(until["deleted"]) and m[4] == 2}
+            if set(deleted) != {"spawned_objects", "spawned_object_names"}:
+                return False
+            if len([t for t, _ in rec["model_states"] if t > max(deleted.values())]) < until.get("after", 0):
+                return False
+        return True
+
     for step in steps:
         kind = step["do"]
         if kind == "param":
             out.append(rospy.get_param(step["name"], None))
+        elif kind == "connected":
+            # Every subscriber connected to its publisher, and the joint states and /tf coming in: what
+            # follows is recorded from its start.
+            wait(lambda: all(s.get_num_connections() for s in subscribers) and rec["joint_states"] and rec["tf"],
+                 "the subscribers to connect and the joint states and /tf to come in")
+            out.append(None)
         elif kind == "command":
             topic = step["topic"]
             if topic not in publishers:
                 publishers[topic] = rospy.Publisher(topic, Float64, queue_size=1, latch=True)
-                deadline = time.monotonic() + 10
-                while publishers[topic].get_num_connections() == 0 and time.monotonic() < deadline:
-                    time.sleep(0.05)
+                wait(lambda: publishers[topic].get_num_connections(), f"the node to subscribe to {topic}")
             publishers[topic].publish(step["value"])
             out.append(None)
         elif kind == "spawn":
@@ -113,8 +170,8 @@ def _client(joint_states: str, steps: list[dict]) -> dict:
         elif kind == "delete":
             r = rospy.ServiceProxy("/gazebo/delete_model", DeleteModel)(model_name=step["name"])
             out.append([r.success, r.status_message])
-        elif kind == "wait":
-            time.sleep(step["s"])
+        elif kind == "until":
+            wait(lambda: holds(step), f"{step}")
             out.append(None)
         elif kind == "graph":
             publishers_, subscribers, _ = rosgraph.Master(rospy.get_name()).getSystemState()
@@ -246,13 +303,16 @@ if __name__ != "__main__":
             wait_for_topic(g.env, "/tf")  # robot_state_publisher, started by jointctl, is up
             rec = g.client(ONE_DOF_STATES, [
                 {"do": "param", "name": "/robot_description"},                                    # 0
-                {"do": "wait", "s": 0.3},
+                {"do": "connected"},
                 {"do": "command", "topic": "/one_DOF_robot/joint1_position_controller/command", "value": -0.2},
-                {"do": "wait", "s": 1.5},
+                # From -0.5 m towards -0.2 m (P alone: it rests m·g/Kp = 25 mm short), 60 TF messages in.
+                {"do": "until", "above": {"joint1": -0.24}, "tf": 60},
                 {"do": "spawn", "name": "crate", "xml": BOX_URDF, "xyz": [0.6, 0.0, 1.5]},         # 4
-                {"do": "wait", "s": 2.0},  # falls 1.4 m in 0.53 s, then rests on the floor
+                # It falls 1.4 m in 0.53 s (26 markers at 50 Hz), then rests on the floor: 31 markers, the
+                # last five (0.1 s) at its half height.
+                {"do": "until", "at_rest": {"name": "crate", "z": 0.1, "tol": 0.005, "count": 31}},
                 {"do": "delete", "name": "crate"},                                                 # 6
-                {"do": "wait", "s": 0.5},
+                {"do": "until", "deleted": "crate", "after": 50},
                 {"do": "graph"},                                                                   # 8
             ])
             serving = serve.poll() is None
@@ -306,20 +366,29 @@ if __name__ != "__main__":
         np.testing.assert_allclose(label[7][:3], np.array(shown[-1][1][7][:3]) + [0, 0, 0.2], rtol=0, atol=1e-12)
         z = np.array([m[7][2] for _, m in shown])
         assert z[0] > 1.3 and z[-1] == pytest.approx(0.1, abs=0.005)  # live: it falls to the floor
-        # The same cycle's pose: for each marker message, a model_states message read in the same loop
-        # cycle (received within 0.2 s) has the crate at that pose; while falling, one cycle moves it
-        # by millimetres, so only the same cycle matches.
-        states = [(t, names.index("crate"), poses) for t, (names, poses) in rec["model_states"] if "crate" in names]
-        same, moving = 0, 0
-        for t, m in shown:
-            candidates = [np.array(poses[k]) for ts, k, poses in states if abs(ts - t) < 0.2]
-            errors = [np.abs(c[:3] - m[7][:3]).max() for c in candidates]
-            if errors and min(errors) < TOL_M:
-                same += 1
-                best = candidates[int(np.argmin(errors))]
-                np.testing.assert_allclose(best[3:], m[7][3:], rtol=0, atol=TOL_M)
-                moving += m[7][2] < z[0] - 0.05 and m[7][2] > 0.2
-        assert same >= 0.9 * len(shown) and moving >= 3, (same, moving, len(shown))
+        # The same cycle's pose, whenever each message was received. While the crate falls, model_states
+        # says which cycle it is from: from rest, each MuJoCo step takes g·h off its vertical speed, so
+        # -v/(g·h) counts the steps since it was spawned; a marker's stamp counts loop time in steps of h.
+        # The marker and model_states of one cycle have the same pose exactly, and one step moves it by
+        # millimetres: the pairs of equal poses give one offset between the two counts, the same for all;
+        # then every falling marker whose cycle's model_states came (a publisher may drop one under load)
+        # has that pose.
+        g, h = 9.81, 0.001
+        falling = {}  # steps since the spawn -> the crate's pose in model_states
+        for _, (names, poses, twists) in rec["model_states"]:
+            k = names.index("crate") if "crate" in names else None
+            if k is not None and twists[k][2] < -0.1 and poses[k][2] > 0.2:  # falling, above the floor
+                falling[round(-twists[k][2] / (g * h))] = np.array(poses[k])
+        first = shown[0][1][0]
+        marked = {round((m[0] - first) * 1e-9 / h): np.array(m[7]) for _, m in shown}  # loop steps -> pose
+        offsets = {n - c for c, pose in marked.items() for n, state in falling.items()
+                   if np.abs(state[:3] - pose[:3]).max() < TOL_M}
+        assert len(offsets) == 1, offsets  # one offset: each equal pair is of one cycle
+        offset = offsets.pop()
+        paired = [(pose, falling[c + offset]) for c, pose in marked.items() if c + offset in falling]
+        assert len(paired) >= 3, (len(paired), len(falling), len(marked))
+        for pose, state in paired:
+            np.testing.assert_allclose(pose, state, rtol=0, atol=TOL_M)
         # Deleted: the next message deletes its marker, and it is not shown again.
         assert rec["steps"][6][0], rec["steps"][6]
         deleted = {m[2]: t for t, markers in rec["markers"] for m in markers if m[3] == marker_id and m[4] == 2}
@@ -356,8 +425,10 @@ if __name__ != "__main__":
             wait_for_topic(g.env, "/tf")
             steps = [{"do": "command", "topic": f"/arm7dof/{joint}_position_controller/command", "value": value}
                      for joint, value in ARM_TARGETS.items()]
-            yield g.client(ARM_STATES, [{"do": "param", "name": "/robot_description"}, *steps,
-                                        {"do": "wait", "s": 2.5}])
+            # Recorded from before the commands until joint0 and joint6 have each moved 0.15 rad of their
+            # 0.5 and 0.6 rad, and 60 TF messages are in.
+            yield g.client(ARM_STATES, [{"do": "param", "name": "/robot_description"}, {"do": "connected"}, *steps,
+                                        {"do": "until", "moved": {"joint0": 0.15, "joint6": 0.15}, "tf": 60}])
 
     def test_the_arms_flange_tf_is_the_models_forward_kinematics(arm):
         from jointctl.model.dynamics import RobotDynamics

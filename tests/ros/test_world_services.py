@@ -157,13 +157,30 @@ def _client(steps: list[dict]) -> dict:
         elif kind == "wait":
             time.sleep(step["s"])
             out.append({})
+        elif kind == "gone":
+            # Model states from the first that lists `witness` (spawned after `name` was deleted, so
+            # each message listing it was published after the delete, whenever it arrives; one still
+            # on its way from before cannot list it) until `count` of them list it: the names seen.
+            deadline = started + step.get("timeout", 60.0)
+            while True:
+                with lock:
+                    seen = [names for _, names, _, _ in states]
+                first = next((k for k, names in enumerate(seen) if step["witness"] in names), None)
+                after = [] if first is None else seen[first:]
+                if len([n for n in after if step["witness"] in n]) >= step["count"]:
+                    break
+                if time.monotonic() > deadline:
+                    raise SystemExit(f"waited for {step['count']} model_states listing {step['witness']!r}; "
+                                     f"{len(after)} so far")
+                time.sleep(0.05)
+            out.append({"names": sorted({name for n in after for name in n}), "count": len(after),
+                        "with": len([n for n in after if step["name"] in n])})
         elif kind == "watch":
-            # Model states received since step `since` started ("at"), or since it was answered plus
-            # `after` s (messages published before a change may still be on their way): the named
-            # model's z and the names seen; for at least `s` s and until the `until` condition on
-            # that z holds ("drop": it fell that far from where first seen; "below": the last z is
-            # below that; "near": [z, tol]: the last z is that close), or `timeout` s.
-            since = out[step["since"]]["at"] if "after" not in step else out[step["since"]]["done"] + step["after"]
+            # Model states received since step `since` started: the named model's z and the names
+            # seen; for at least `s` s and until the `until` condition on that z holds ("drop": it
+            # fell that far from where first seen; "below": the last z is below that; "near": [z,
+            # tol]: the last z is that close), or `timeout` s.
+            since = out[step["since"]]["at"]
             until, deadline = step.get("until", {}), started + step.get("timeout", 20.0)
 
             def holds(z):
@@ -220,8 +237,8 @@ if __name__ != "__main__":
     def test_the_books_weight_dropped_through_spawn_sdf_model_then_gravity_changed(ros_env, serve):
         serve("one_dof", "--controllers", "position", "--speed", str(SPEED), wait_topic=JOINT_STATES)
         # Settles are read from samples received after the change they wait for; a watch lasts until
-        # what it looks for is seen. Messages in flight when a service answers arrive within the
-        # topics' latency (p99 0.3 ms, lone maxima of 8 ms here): "after" leaves 0.25 s for them.
+        # what it looks for is seen. After the delete, a witness spawned once it was answered marks
+        # the model_states published after it (see the client's "gone").
         steps = client(ros_env, [
             {"do": "get"},
             {"do": "command", "value": -0.2},
@@ -234,12 +251,13 @@ if __name__ != "__main__":
             {"do": "settle", "since": 7, "loaded": True, "timeout": 120},   # 8: at rest under -9.8
             {"do": "get"},                                                  # 9
             {"do": "delete", "name": "cyl_weight"},                         # 10
-            {"do": "watch", "since": 10, "name": "cyl_weight", "s": 0.5, "after": 0.25},  # 11
-            {"do": "settle", "since": 10, "timeout": 60},                   # 12: unloaded again
+            {"do": "spawn", "name": "witness", "xml": URDF_BOX, "xyz": [2.0, 2.0, 0.1], "urdf": True},  # 11
+            {"do": "gone", "name": "cyl_weight", "witness": "witness", "count": 25},  # 12
+            {"do": "settle", "since": 10, "timeout": 60},                   # 13: unloaded again
         ])
-        before, set5, spawn, fall, rest5, set98, rest98, after, delete, gone, unloaded = (
+        before, set5, spawn, fall, rest5, set98, rest98, after, delete, witness, gone, unloaded = (
             steps[0], steps[2], steps[4], steps[5], steps[6], steps[7], steps[8], steps[9], steps[10], steps[11],
-            steps[12])
+            steps[12], steps[13])
         # get: the loop's step and rate, the serve's gravity, MuJoCo's solver settings.
         assert before["success"] and before["time_step"] == pytest.approx(0.001)
         assert before["max_update_rate"] == pytest.approx(1000.0 * SPEED) and before["pause"] is False
@@ -269,9 +287,10 @@ if __name__ != "__main__":
             assert poses[base][:3] == pytest.approx([0.0, 0.0, 0.0], abs=1e-9)
         assert set98["success"] and "-9.8" in set98["status_message"]
         assert after["gravity"] == pytest.approx([0.0, 0.0, -9.8])
-        # delete_model: gone from model_states, and the piston carries only itself again.
+        # delete_model: in no model_states published after it, and the piston carries only itself again.
         assert delete["success"], delete
-        assert gone["count"] > 0 and "cyl_weight" not in gone["names"] and "one_DOF_robot" in gone["names"]
+        assert witness["success"], witness
+        assert gone["with"] == 0 and "cyl_weight" not in gone["names"] and "one_DOF_robot" in gone["names"]
         assert unloaded["settled"]
         assert unloaded["force_z"] == pytest.approx(-M_PLATE * 9.8, abs=0.01)
         assert unloaded["joint"] == pytest.approx(-0.2 - (M_PISTON + M_PLATE) * 9.8 / KP, abs=0.002)
@@ -294,7 +313,8 @@ if __name__ != "__main__":
             {"do": "delete", "name": "one_DOF_robot"},                                                 # 12
             {"do": "delete", "name": "nothing_here"},                                                  # 13
             {"do": "delete", "name": "crate"},                                                         # 14
-            {"do": "watch", "since": 14, "name": "crate", "s": 0.5, "after": 0.25},                   # 15
+            {"do": "spawn", "name": "witness", "xml": URDF_BOX, "xyz": [2.0, 2.0, 0.1], "urdf": True},  # 15
+            {"do": "gone", "name": "crate", "witness": "witness", "count": 25},                       # 16
         ])
         # A valid spawn is visible, so the negative checks below can fail.
         assert steps[0]["success"], steps[0]
@@ -316,8 +336,9 @@ if __name__ != "__main__":
         assert steps[11]["gravity"] == pytest.approx([0.5, 0.0, -9.0])
         assert steps[12]["success"] is False and "cannot be deleted" in steps[12]["status_message"]
         assert steps[13]["success"] is False and "does not exist" in steps[13]["status_message"]
-        assert steps[14]["success"], steps[14]
-        assert steps[15]["count"] > 0 and "crate" not in steps[15]["names"]
+        assert steps[14]["success"] and steps[15]["success"], steps[14:16]
+        # In no model_states published after the delete (each listing the witness, spawned after it).
+        assert steps[16]["with"] == 0 and "crate" not in steps[16]["names"] and "witness" in steps[16]["names"]
 
     NOT_SIMULATED = r'''
 import json, sys, types

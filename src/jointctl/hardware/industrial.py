@@ -10,7 +10,10 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   between the last two reports (JOINT_POSITION carries no velocity), ``effort`` zero (not
   reported). ``status`` is the last STATUS (``in_motion``, ``in_error``...); ``in_motion`` its
   ``in_motion`` as a bool (None when unknown): a goal succeeds only once the controller says the
-  robot is not in motion, as ROS-I's action server requires.
+  robot is not in motion, as ROS-I's action server requires. Listeners added with
+  :meth:`add_state_listener` get every JOINT_POSITION and STATUS as it is read, on the reader's
+  thread (ROS-I's ``robot_state`` relays each one: several read between two loop cycles are each
+  relayed, not only the last).
 - **Commands**: each joint has a ``position`` command interface only (the controller servos its
   joints; there is no PID on this side). The hardware *takes trajectories*: a trajectory executor
   hands it each goal (:meth:`execute_trajectory`), sent as ROS-I's client sends it
@@ -37,9 +40,12 @@ jointctl hardware implementation, so the same controllers, executor and ROS node
   after it says the robot is at rest, that the controller refused a point: the executor aborts its
   goal and follows the robot to where the controller halted it (its joints may still be on their
   way: servo lag), and holds there; the next motion starts a new trajectory, which clears the
-  controller's error. Lost connections are re-opened in the
-  background every ``retry_s``; the fault clears when state flows again. The trajectory executor
-  aborts its goal on a fault and refuses new ones while it lasts.
+  controller's error. Lost connections are re-opened in the background every ``retry_s``
+  (:attr:`connected` says when both are open); the fault clears when state flows again. A lost motion
+  connection is a fault for at least one :meth:`read`, also when it was re-opened before that read
+  came (the loop descheduled longer than ``retry_s``): the controller dropped the trajectory in hand
+  with it, and the goal it belonged to must abort. The trajectory executor aborts its goal on a fault
+  and refuses new ones while it lasts.
 
 Time: :meth:`advance` counts loop time (the controller runs on its own clock). Byte order:
 little-endian unless ``big_endian`` (the ``_bswap`` drivers). Joint ``i`` of a packet is joint
@@ -54,7 +60,7 @@ import select
 import socket
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from jointctl.errors import JointCtlError, MalformedPacket
 from jointctl.hardware.interface import POSITION, HardwareInterface
@@ -183,7 +189,10 @@ class IndustrialHardware(HardwareInterface):
         self._closing = threading.Event()
         self._motion: socket.socket | None = None
         self._state: socket.socket | None = None
-        self._motion_lost: str | None = None
+        self._motion_lost: str | None = None  # why the motion connection is down, until re-opened
+        self._motion_losses = 0  # motion connections lost so far ...
+        self._motion_losses_reported = 0  # ... and when read() last reported one as the fault
+        self._last_motion_loss = ""  # what the last loss said
         self._threads: list[threading.Thread] = []
         self.replies = 0  # points the controller acknowledged
         self._trajectory = 0  # the number of the trajectory in hand (each handed over or stopped: +1)
@@ -196,6 +205,7 @@ class IndustrialHardware(HardwareInterface):
         self._trajectory_end: list[float] | None = None  # the last point of the trajectory in hand
         #: JOINT_POSITION reports received when ``position`` was last refreshed (by :meth:`read`).
         self.reports_read = 0
+        self._state_listeners: list[tuple[Callable | None, Callable | None]] = []
 
     # -- connection ------------------------------------------------------------------------------------
     def connect(self, *, first_state_timeout_s: float = 5.0) -> None:
@@ -263,6 +273,13 @@ class IndustrialHardware(HardwareInterface):
                 sock.close()
                 self._state = None
 
+    def add_state_listener(self, positions: Callable[[tuple[float, ...]], None] | None = None,
+                           status: Callable[[RobotStatus], None] | None = None) -> None:
+        """Call ``positions(reported positions)`` for every JOINT_POSITION (the first ``len(joint_names)``
+        joints, [rad or m]) and ``status(message)`` for every STATUS, as each is read: on the state
+        reader's thread, before the next one is read. A listener must return quickly and not raise."""
+        self._state_listeners.append((positions, status))
+
     def _on_state(self, packet) -> None:
         if packet.comm_type != CommType.TOPIC:
             return
@@ -280,6 +297,9 @@ class IndustrialHardware(HardwareInterface):
                     self._velocity = [(q - p) / dt for q, p in zip(positions, previous)]
                 self._reported, self._reported_at = positions, now
                 self._state_reports += 1
+            for listener, _ in self._state_listeners:
+                if listener is not None:
+                    listener(positions)
         elif isinstance(message, RobotStatus):
             if message.in_error == TRISTATE_TRUE and (self.status is None or self.status.in_error != TRISTATE_TRUE):
                 self._error_since = now
@@ -289,6 +309,9 @@ class IndustrialHardware(HardwareInterface):
                 self._rest_reports = 0
             elif now > self._done_at:
                 self._rest_reports += 1
+            for _, listener in self._state_listeners:
+                if listener is not None:
+                    listener(message)
 
     def _reconnect(self, which: str) -> bool:
         """Re-open ``which`` connection, trying every ``retry_s``; False when closing."""
@@ -330,7 +353,9 @@ class IndustrialHardware(HardwareInterface):
             except (OSError, ConnectionError, MalformedPacket) as exc:
                 if self._closing.is_set():
                     return
-                self._motion_lost = f"lost the motion connection to {self.robot_ip}:{self.motion_port} ({exc})"
+                self._last_motion_loss = f"lost the motion connection to {self.robot_ip}:{self.motion_port} ({exc})"
+                self._motion_lost = self._last_motion_loss
+                self._motion_losses += 1
                 if self._motion is not None:
                     self._motion.close()
                 self._motion = None
@@ -479,6 +504,9 @@ class IndustrialHardware(HardwareInterface):
             # At rest after the refusal (or no STATUS to say otherwise). The fault lasts this one more read,
             # so that the executor takes this position as its hold: when it clears, nothing is sent.
             self._after_refusal = None
+        losses, motion_lost = self._motion_losses, self._motion_lost
+        if motion_lost is None and losses != self._motion_losses_reported:
+            motion_lost = self._last_motion_loss  # lost and re-opened since the last read: reported once
         refused_point = self._refused_point
         # The error code is a STATUS in error read after the FAILURE reply (a STATUS read after it but
         # sent before the refusal, still without the error, does not end the wait: the two ports race).
@@ -494,8 +522,9 @@ class IndustrialHardware(HardwareInterface):
             self.fault = (f"the controller refused point {refused_point[0]} of the trajectory (FAILURE; {code}): "
                           f"{refused_point[2]}")
             self._after_refusal = (self.fault, refused_point[1])
-        elif self._motion_lost is not None:
-            self.fault = self._motion_lost
+        elif motion_lost is not None:
+            self.fault = motion_lost
+            self._motion_losses_reported = losses
         elif self._stopping or came_to_rest:
             self.fault = STOPPING
         elif refused and not self._refusal_reported and refused_point is None and not self._reply_due():
@@ -644,6 +673,11 @@ class IndustrialHardware(HardwareInterface):
 
     def advance(self, period_s: float) -> None:
         self._time_s += period_s
+
+    @property
+    def connected(self) -> bool:
+        """Both connections are open now (each is re-opened in the background after a loss)."""
+        return self._state is not None and self._motion is not None and self._motion_lost is None
 
     @property
     def state_reports(self) -> int:

@@ -13,7 +13,9 @@ offers the same names, in the root namespace as ROS-I's launch files put them:
 - ``joint_states`` (sensor_msgs/JointState, positions as the controller reports them) and
   ``feedback_states`` (control_msgs/FollowJointTrajectoryFeedback, ``actual.positions``) for each
   JOINT_POSITION the controller sends, and ``robot_status`` (industrial_msgs/RobotStatus) for each
-  STATUS, as ROS-I's ``robot_state`` relays them (checked every loop cycle: at most one cycle late);
+  STATUS, as ROS-I's ``robot_state`` relays them: published as each is read, on the hardware's state
+  reader thread, so reports read together (the reader or the loop descheduled a while) are each
+  relayed, in order, not only the last; stamped with the ROS time when read;
 - parameters ``robot_ip_address`` and ``controller_joint_names``.
 
 A stop (an empty ``joint_path_command``, ``stop_motion``, or a canceled ``joint_trajectory_action``
@@ -38,25 +40,29 @@ from jointctl.ros.conversions import trajectory_from_ros
 from jointctl.trajectory.errors import InvalidTrajectory
 from jointctl.trajectory.executor import TrajectoryExecutor
 
+#: Messages each state topic's publisher holds for a subscriber's connection.
+STATE_QUEUE = 100
+
 
 class IndustrialTopics:
     """ROS-I's names for ``executor`` driving ``hardware`` (see the module docstring)."""
 
-    def __init__(self, hardware: IndustrialHardware, executor: TrajectoryExecutor, clock, loop) -> None:
+    def __init__(self, hardware: IndustrialHardware, executor: TrajectoryExecutor, clock) -> None:
         self.hardware, self.executor, self.clock = hardware, executor, clock
         rospy.set_param("/robot_ip_address", hardware.robot_ip)
         rospy.set_param("/controller_joint_names", list(hardware.joint_names))
         self.action = TrajectoryActionServer("/joint_trajectory_action", "follow_joint_trajectory", executor, clock)
-        self._joint_states = rospy.Publisher("/joint_states", JointState, queue_size=10)
-        self._feedback = rospy.Publisher("/feedback_states", FollowJointTrajectoryFeedback, queue_size=10)
-        self._status_topic = rospy.Publisher("/robot_status", RobotStatus, queue_size=10)
+        # Reports read together are published together: the queues hold a burst of them (a reader
+        # descheduled 1 s at the controller's 100 Hz) for a subscriber's connection to take.
+        self._joint_states = rospy.Publisher("/joint_states", JointState, queue_size=STATE_QUEUE)
+        self._feedback = rospy.Publisher("/feedback_states", FollowJointTrajectoryFeedback, queue_size=STATE_QUEUE)
+        self._status_topic = rospy.Publisher("/robot_status", RobotStatus, queue_size=STATE_QUEUE)
         rospy.Subscriber("/joint_path_command", RosJointTrajectory, self._on_path, queue_size=1)
         rospy.Service("/joint_path_command", CmdJointTrajectory, self._on_path_service)
         rospy.Service("/stop_motion", StopMotion, self._on_stop_service)
         self._goal = None
-        self._reports = 0  # the hardware's reports_read when last published
-        self._status = None  # the last STATUS published
-        loop.add_observer(self._publish)
+        self._names = list(hardware.joint_names)
+        hardware.add_state_listener(self._relay_positions, self._relay_status)
 
     # -- commands (rospy's threads) ---------------------------------------------------------------
     def _execute(self, msg: RosJointTrajectory) -> bool:
@@ -91,31 +97,31 @@ class IndustrialTopics:
         self.stop()
         return StopMotionResponse(code=ServiceReturnCode(val=ServiceReturnCode.SUCCESS))
 
-    # -- state (the loop thread: publishing only queues) -------------------------------------------
-    def _publish(self, time_s: float) -> None:
-        hw = self.hardware
-        reports, status = hw.reports_read, hw.status
-        if reports != self._reports:
-            self._reports = reports
-            stamp = rospy.Time.now()
-            names, positions = list(hw.joint_names), list(hw.position)
-            joint_state = JointState(name=names, position=positions)
-            joint_state.header.stamp = stamp
+    # -- state (the hardware's state reader thread: publishing only queues) ----------------------
+    def _relay_positions(self, positions: tuple[float, ...]) -> None:
+        stamp = rospy.Time.now()
+        joint_state = JointState(name=self._names, position=list(positions))
+        joint_state.header.stamp = stamp
+        feedback = FollowJointTrajectoryFeedback(joint_names=self._names)
+        feedback.header.stamp = stamp
+        feedback.actual.positions = list(positions)
+        try:
             self._joint_states.publish(joint_state)
-            feedback = FollowJointTrajectoryFeedback(joint_names=names)
-            feedback.header.stamp = stamp
-            feedback.actual.positions = positions
             self._feedback.publish(feedback)
-        if status is not None and status is not self._status:
-            self._status = status
-            stamp = rospy.Time.now()
-            message = RobotStatus(
-                mode=RobotMode(val=status.mode), e_stopped=TriState(val=status.e_stopped),
-                drives_powered=TriState(val=status.drives_powered),
-                motion_possible=TriState(val=status.motion_possible), in_motion=TriState(val=status.in_motion),
-                in_error=TriState(val=status.in_error), error_code=status.error_code)
-            message.header.stamp = stamp
+        except rospy.ROSException:  # the node is shutting down
+            pass
+
+    def _relay_status(self, status) -> None:
+        message = RobotStatus(
+            mode=RobotMode(val=status.mode), e_stopped=TriState(val=status.e_stopped),
+            drives_powered=TriState(val=status.drives_powered),
+            motion_possible=TriState(val=status.motion_possible), in_motion=TriState(val=status.in_motion),
+            in_error=TriState(val=status.in_error), error_code=status.error_code)
+        message.header.stamp = rospy.Time.now()
+        try:
             self._status_topic.publish(message)
+        except rospy.ROSException:  # the node is shutting down
+            pass
 
 
 __all__ = ["IndustrialTopics"]

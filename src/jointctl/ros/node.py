@@ -160,7 +160,7 @@ class RosNode:
         self.industrial = None
         executors = [c for c in manager.active if isinstance(c, TrajectoryExecutor)]
         if isinstance(session.hardware, IndustrialHardware) and executors:
-            self.industrial = IndustrialTopics(session.hardware, executors[0], self.clock, session.loop)
+            self.industrial = IndustrialTopics(session.hardware, executors[0], self.clock)
         #: /robot_description (the expanded URDF) and the spawned objects' markers, for robot_state_publisher
         #: and rviz (see jointctl.ros.robot_description).
         self.description = attach_robot_description(self)

@@ -57,6 +57,9 @@ from jointctl.sim.model_xml import UnsupportedModel, check_model_name, parse_mod
 
 NAMESPACE = "/gazebo"
 MODEL_STATES_RATE_HZ = 100.0
+#: Messages model_states' publisher holds for a subscriber's connection (gazebo_ros advertises it with
+#: 10): a tenth of a second at 100 Hz before a slow connection loses one.
+MODEL_STATES_QUEUE = 10
 APPLY_TIMEOUT_S = 10.0
 WORLD_FRAMES = ("", "world", "map", "/map")
 GROUND_PLANE = "ground_plane"
@@ -116,7 +119,7 @@ class WorldServices:
             self._base = self._base_body()
             self._track()
             self.sim.on_rebuild(self._track)
-            self._publisher = rospy.Publisher(f"{ns}/model_states", ModelStates, queue_size=1)
+            self._publisher = rospy.Publisher(f"{ns}/model_states", ModelStates, queue_size=MODEL_STATES_QUEUE)
             self._every = max(1, round(1.0 / (MODEL_STATES_RATE_HZ * self.loop.period_s)))
             self._count = 0
             self.loop.add_observer(self._publish_states)
