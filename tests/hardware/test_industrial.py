@@ -219,8 +219,8 @@ def test_stale_state_is_a_fault_until_state_flows_again(peer) -> None:
 
 
 def test_a_lost_motion_connection_is_a_fault_and_is_reopened(peer) -> None:
-    # The fault lasts at least retry_s (the hardware waits that long before it reopens): 0.5 s is
-    # 100 of wait_for's polls.
+    # The loss is the fault of at least one read, however late that read comes (reopened meanwhile or not):
+    # tests/industrial_controller/test_controller.py restarts the controller between two reads.
     hw = connected(peer, retry_s=0.5)
     try:
         command = hw.command_buffer(POSITION)
