@@ -21,7 +21,7 @@ FOUNDATION = ("jointctl", "errors", "validate", "paths", "python_path")
 #: scenarios and may use identification's designs).
 LAYERS = ("wire", "model", "sim", "hardware", "control", "trajectory", "runtime",
           "commands", "metrics", "recording", "visuals",
-          "scenario", "identification", "sweep", "industrial_controller", "clients", "tuning", "ros", "cli")
+          "scenario", "identification", "sweep", "industrial_controller", "clients", "tuning", "ros", "ros2", "cli")
 #: The core: what runs inside the loop; the edges sit on it.
 CORE = ("model", "sim", "hardware", "control", "trajectory", "runtime")
 SIMULATOR_FREE = ("control", "trajectory", "runtime")

@@ -33,15 +33,33 @@ def ros_edge(module: str):
         raise JointCtlError(f"ROS 1 is not available ({exc}); install it with 'make ros'") from None
 
 
+#: How a user makes ROS 2 reachable: rclpy and ROS 2's messages come from the ROS 2 the shell sourced.
+ROS2_SETUP_HINT = "source your ROS 2 first, e.g. source /opt/ros/jazzy/setup.bash (make ros2 installs one)"
+
+
+def ros2_edge(module: str):
+    """``jointctl.ros2.<module>``, or one line saying how to source ROS 2."""
+    import importlib
+
+    try:
+        return importlib.import_module(f"jointctl.ros2.{module}")
+    except ImportError as exc:  # rclpy missing, or its libraries (a setup.bash not sourced): the first line says
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise JointCtlError(f"ROS 2 is not available ({reason}); {ROS2_SETUP_HINT}") from None
+
+
 def loop_hardware_arguments(parser: argparse.ArgumentParser) -> None:
     """Where identify, bode and autotune find the joint's loop."""
-    parser.add_argument("--hardware", choices=("sim", "ros", "industrial"), default="sim",
+    parser.add_argument("--hardware", choices=("sim", "ros", "ros2", "industrial"), default="sim",
                         help="sim: the robot in MuJoCo, in simulated time (default); ros: the robot a node serves "
                              "on the ROS graph (jointctl serve), through its topics and dynamic_reconfigure, in "
-                             "real time; industrial: an industrial controller over simple_message (bode only: "
-                             "its own servo loop, streamed positions)")
+                             "real time; ros2: a ros2_control robot on the ROS 2 graph, through its pid_controller "
+                             "or forward command controller, /joint_states and the controller's parameters, in "
+                             "real time (source ROS 2 first); industrial: an industrial controller over "
+                             "simple_message (bode only: its own servo loop, streamed positions)")
     parser.add_argument("--namespace", help="with --hardware ros: the served robot's namespace (default: the "
-                                            "robot's controller file's, e.g. one_DOF_robot)")
+                                            "robot's controller file's, e.g. one_DOF_robot); with --hardware ros2: "
+                                            "its controller_manager's namespace (default: none, /controller_manager)")
     industrial_arguments(parser)
 
 
