@@ -136,8 +136,9 @@ def loop_plant(hardware, robot, plant: dict | None) -> dict | None:
     print(f"jointctl: {hardware.controller_node} commands {loop.joint}'s acceleration: its plant is a unit "
           f"{'mass' if prismatic else 'inertia'} (the effort is the acceleration; --plant to say otherwise)",
           file=sys.stderr)
-    return ({"mass_kg": 1.0, "damping_n_s_m": 0.0} if prismatic
-            else {"inertia_kg_m2": 1.0, "damping_n_m_s_rad": 0.0})
+    source = {"plant_source": f"{loop.actuation} command (a unit {'mass' if prismatic else 'inertia'})"}
+    return ({"mass_kg": 1.0, "damping_n_s_m": 0.0, **source} if prismatic
+            else {"inertia_kg_m2": 1.0, "damping_n_m_s_rad": 0.0, **source})
 
 
 def has_model(hardware) -> bool:

@@ -62,7 +62,7 @@ from jointctl.errors import ConfigError
 from jointctl.identification.frequency_response import (LoopModel, _crossing, held_reference, loop_controller,
                                                          measure,
                                                          measure_servoed, model_plant, plant_friction, plant_of,
-                                                         servo_reference)
+                                                         plant_source, servo_reference)
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.identification.step_design import (INTEGRAL_TIMES, OVERSHOOT_TOLERANCE_PCT, SETTLING_TOLERANCE,
                                                  StepDesign, binding, lowest_settling, ramp_for_kick, solve_step,
@@ -445,7 +445,7 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     if plant is not None:
         mass, damping = plant_of(plant)
         gravity = abs(float(plant.get("gravity_load_n", 0.0)))
-        source = "identified"
+        source = plant_source(plant)
     else:
         mass, damping = model_plant(robot, joint, pose)
         source = "robot model"
