@@ -746,7 +746,7 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
     if out_dir is not None:
         tuned = getattr(hardware, "tuned_parameters", None)
         if tuned is not None:
-            _write_document(out_dir, *tuned(controller_name, result["gains"]), result)
+            _write_document(out_dir, *tuned(controller_name, result["gains"]), controller_name, result)
         else:
             namespace = hardware.namespace
             _write(out_dir, f"{namespace}_tuned_params.yaml", {namespace: hardware.controller_parameters()},
@@ -979,15 +979,14 @@ def _write(out_dir, file_name: str, document: dict, controller_name: str, result
             found = True
     if not found:
         raise ConfigError("the controller is not in its file", source=file_name, field=controller_name)
-    _write_document(out, file_name, tuned, result)
+    _write_document(out, file_name, tuned, controller_name, result)
 
 
-def _write_document(out_dir, file_name: str, tuned: dict, result: dict) -> None:
-    """``tuned`` (a controller file with the tuned gains in) as ``file_name`` in ``out_dir`` under a header
-    naming the spec, and ``metrics.json``; ``result["yaml"]`` the file's path."""
+def _write_document(out_dir, file_name: str, tuned: dict, controller_name: str, result: dict) -> None:
+    """``tuned`` (a controller file with ``controller_name``'s tuned gains in) as ``file_name`` in ``out_dir``
+    under a header naming the spec, and ``metrics.json``; ``result["yaml"]`` the file's path."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    controller_name = result["controller"]
     header = (f"# {file_name} with {controller_name} tuned by jointctl autotune for "
               f"{result['spec']['bandwidth_hz']:g} Hz" + (f", damping ratio {result['spec']['zeta']:g}"
                                                          if result["loop"] == "position" else "") + ".\n")
