@@ -297,8 +297,11 @@ def test_autotune_through_the_acceleration_loop_designs_for_the_unit_plant_and_p
 
 
 def test_bode_through_a_forward_command_controller_is_the_mocks_one_cycle(rig, tmp_path) -> None:
+    # A fixed 0.2 rad: the mock's velocity is the position's difference over the cycle, and a cycle that gets two
+    # commands (two loops at one rate on two clocks) doubles it; the planned amplitudes would then read as the
+    # velocity limit touched at 5 Hz.
     result = jointctl(rig, "bode", "--hardware", "ros2", "--controller", "joint3_position", "--f-min-hz", "0.8",
-                      "--f-max-hz", "5", "--points", "3", "--out", str(tmp_path))
+                      "--f-max-hz", "5", "--points", "3", "--amplitude", "0.2", "--out", str(tmp_path))
     assert result.returncode == 0, result.stderr
     assert "warning" not in result.stderr, result.stderr
     metrics = json.loads((tmp_path / "metrics.json").read_text())
