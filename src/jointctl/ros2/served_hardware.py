@@ -28,7 +28,8 @@ sees, under the robot's namespace (``""`` for the root):
     held where they were when this side connected, or at rest).
 
 ``fault`` is set while no joint state arrives for ``stale_after_s``. :meth:`ServedRos2Hardware.close`
-sends the last reference again and puts back every gain of the loop it found changed.
+sends the last reference again and, when this side set gains, puts back every gain parameter of the loop
+that is not as it was found (a change someone else made while a tool only measured is left alone).
 """
 
 from __future__ import annotations
@@ -151,8 +152,9 @@ class ServedRos2Hardware(HardwareInterface):
         self._others: dict[str, float] = {}
         #: The loop's reference when this side connected (joint -> value or None), put back on leaving.
         self.set_points: dict[str, float | None] = {}
-        #: The loop's gain parameters as found (parameter name -> value), put back on leaving.
+        #: The loop's gain parameters as found (parameter name -> value), put back on leaving if this side set any.
         self.gains_found: dict[str, object] = {}
+        self._gains_set = False
         self.fault = "no joint state yet"
         node = graph.node
         topic = self._topic("joint_states")
@@ -321,8 +323,9 @@ class ServedRos2Hardware(HardwareInterface):
             self.gains_found = self.graph.get_parameters(self.controller_node, self._gain_parameters())
 
     def restore_gains(self) -> None:
-        """Set back every gain parameter that differs from what :meth:`read_gains_found` found."""
-        if not self.gains_found:
+        """Set back every gain parameter that differs from what :meth:`read_gains_found` found, when this side
+        set gains (:meth:`set_gains`)."""
+        if not self.gains_found or not self._gains_set:
             return
         now = self.graph.get_parameters(self.controller_node, list(self.gains_found))
         changed = {k: v for k, v in self.gains_found.items() if now.get(k) != v}
@@ -345,6 +348,7 @@ class ServedRos2Hardware(HardwareInterface):
         if not self.loop.has_gains:
             raise ConfigError("a forward command controller has no gains (the hardware servos the joint)",
                               field="--controller", value=controller)
+        self._gains_set = True
         self.graph.set_parameters(self.controller_node, {f"gains.{self.loop.command_dof}.{k}": float(gains[k])
                                                          for k in ("p", "i", "d")})
         answered = self.gains(controller)
