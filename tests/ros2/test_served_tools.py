@@ -170,6 +170,11 @@ def test_an_unknown_or_unfit_loop_is_refused_in_one_line_before_anything_is_sent
     assert "velocity" in unfit.stderr and "--controller" in unfit.stderr
     # Nothing was sent: both loops still have no reference.
     assert all(math.isnan(r) for r in references(rig, "pid_controller") + references(rig, "velocity_pid"))
+    # A joint whose states carry no effort cannot be identified: said before it moves (its forward command
+    # controller was only told to hold it where it is).
+    no_effort = jointctl(rig, "identify", "--hardware", "ros2", "--joint", "joint3", "--out", str(tmp_path / "j3"))
+    assert no_effort.returncode == 2 and "no effort" in no_effort.stderr and "--joint" in no_effort.stderr
+    assert not (tmp_path / "j3" / "metrics.json").exists()
 
 
 def test_without_ros2_sourced_the_tools_say_how_in_one_line(tmp_path) -> None:

@@ -66,6 +66,10 @@ def served_ros2(args: argparse.Namespace, *, controller: str | None = None, join
             raise
         try:
             loop = hardware.loop
+            if tool == "identify" and not hardware.reports_effort(loop.joint):
+                raise ConfigError(f"the joint states carry no effort for it (is an effort state interface "
+                                  "broadcast?): identification fits the effort that moves the joint",
+                                  field="--joint", value=loop.joint)
             period = hardware_module.update_period(graph, namespace, loop.controller)
             scenario = _session_scenario(args, files, scenario, folder, period, scenario_for_robot)
             print(f"jointctl: took {taken}; its loop {hardware.controller_node} servos {loop.joint}'s "

@@ -212,6 +212,15 @@ class ServedRos2Hardware(HardwareInterface):
                                 field=topic, value=None)
         self.read()
 
+    def reports_effort(self, joint: str) -> bool:
+        """Whether the newest joint state carries ``joint``'s effort (a number, not NaN or left out)."""
+        k = self.joint_index(joint)
+        with self._lock:
+            msg, order = self._latest, self._order
+        if msg is None or order is None or len(msg.effort) != len(msg.name):
+            return False
+        return math.isfinite(msg.effort[order[k]])
+
     def wait_for_subscribers(self, timeout_s: float = 5.0) -> None:
         """Block until the controller subscribes to what this side publishes."""
         if not self.graph.wait(lambda: self._publisher.get_subscription_count() > 0, timeout_s):
