@@ -16,6 +16,7 @@
     jointctl bode ROBOT --controller NAME [--out DIR]     a loop's measured frequency response and its model
     jointctl autotune ROBOT --controller NAME --zeta Z --bandwidth-hz F   gains for a spec, as the chapter's YAML
                      (or --overshoot-pct P --settling-s T)
+    identify, bode, autotune --hardware ros2   the same on a ros2_control robot (ROS 2 sourced): its pid_controller
     identify, bode, autotune: --max-effort N --max-velocity V --workspace LOWER:UPPER --dry-run
                      (limits planned within and watched: docs/real-robots.md)
     jointctl sweep SCENARIO --vary FIELD=VALUES [--samples N --seed S] [--spec M<=X] [--scheduler ADDR]

@@ -1,5 +1,6 @@
 """``jointctl identify``, ``bode`` and ``autotune``: a joint's plant, its loop's frequency response and gains
-for a spec, on the simulated robot, a served one (--hardware ros) or an industrial controller."""
+for a spec, on the simulated robot, a served one (--hardware ros), a ros2_control robot (--hardware ros2) or
+an industrial controller."""
 
 from __future__ import annotations
 
@@ -18,8 +19,8 @@ from jointctl.recording.metrics_file import metrics_json
 
 #: The target of identify, bode and autotune.
 ROBOT_TARGET_HELP = ("a robot (a built-in name, a folder with a robot.yaml, a robot.yaml, a .urdf or .xacro with "
-                     "--controllers) or a scenario; with --hardware ros it may be left out: the model is read "
-                     "from the served /robot_description")
+                     "--controllers) or a scenario; with --hardware ros or ros2 it may be left out: the model is "
+                     "read from the served /robot_description")
 
 
 def add_parsers(sub) -> None:
@@ -51,7 +52,8 @@ def add_parsers(sub) -> None:
                                        "its model; bandwidth, resonance, margins")
     bode.add_argument("target", nargs="?", help=ROBOT_TARGET_HELP)
     bode.add_argument("--controller", help="the joint position or velocity controller to sweep (sim and ros)")
-    bode.add_argument("--joint", help="with --hardware industrial: the joint whose controller's loop to sweep")
+    bode.add_argument("--joint", help="with --hardware industrial: the joint whose controller's loop to sweep; "
+                                      "with ros2: which joint of a controller that servos several")
     loop_hardware_arguments(bode)
     bode.add_argument("--controllers", default=None,
                       help=f"{CONTROLLERS_HELP}, or velocity for a velocity controller's name")
@@ -70,6 +72,7 @@ def add_parsers(sub) -> None:
                                                  "model and on the robot, written as the chapter's YAML")
     tune_gains.add_argument("target", nargs="?", help=ROBOT_TARGET_HELP)
     tune_gains.add_argument("--controller", required=True, help="the joint position or velocity controller to tune")
+    tune_gains.add_argument("--joint", help="with --hardware ros2: which joint of a controller that servos several")
     loop_hardware_arguments(tune_gains)
     tune_gains.add_argument("--controllers", default=None,
                             help=f"{CONTROLLERS_HELP}, or velocity for a velocity controller's name")
@@ -130,11 +133,15 @@ def _identify(args: argparse.Namespace) -> int:
                             "JOINT_FEEDBACK carry none) and servos the joint itself: there is no plant to fit; "
                             "measure its loop with jointctl bode --hardware industrial", field="--hardware",
                             value="industrial")
-    elif args.hardware == "ros" and not args.dry_run:
+    elif args.hardware in ("ros", "ros2") and not args.dry_run:
         from jointctl.identification.identify import identify_servoed
 
         plant = _plant_file(args.plant)
-        with _served(args, joint=args.joint) as (session, _):
+        with _served(args, joint=args.joint, tool="identify") as (session, _):
+            if args.hardware == "ros2":
+                from jointctl.cli.served_ros2 import loop_plant
+
+                plant = loop_plant(session.hardware, session.robot, plant)
             _, metrics = identify_servoed(session, args.joint, out_dir=args.out, amplitude=args.amplitude,
                                           duration_s=args.duration_s, f_start_hz=args.f_start_hz,
                                           f_end_hz=args.f_end_hz, fit_friction=friction, safety=safety, plant=plant)
@@ -160,12 +167,20 @@ def _identify(args: argparse.Namespace) -> int:
 
 
 @contextlib.contextmanager
-def _served(args: argparse.Namespace, *, controller: str | None = None, joint: str | None = None):
+def _served(args: argparse.Namespace, *, controller: str | None = None, joint: str | None = None,
+            tool: str | None = None):
     """(session, controller name) on the robot a node serves on the ROS graph (``--hardware ros``):
     the model from the target (any robot, or a scenario's) or, without one, from the served
     ``/robot_description``; the loop found on the graph under ``--namespace`` (default: the
     controller file's namespace, else the one namespace holding the joints' loops); the session
-    paced to the wall clock; the loop's reference put back where it was on the way out."""
+    paced to the wall clock; the loop's reference put back where it was on the way out. With
+    ``--hardware ros2``: :func:`jointctl.cli.served_ros2.served_ros2`."""
+    if args.hardware == "ros2":
+        from jointctl.cli.served_ros2 import served_ros2
+
+        with served_ros2(args, controller=controller, joint=joint, tool=tool) as found:
+            yield found
+        return
     import dataclasses
     import tempfile
 
@@ -245,7 +260,7 @@ def _bode(args: argparse.Namespace) -> int:
         return _print_plan(_bode_plan(args, frequencies, safety))
     if args.hardware == "industrial":
         result = _bode_industrial(args, frequencies, safety)
-    elif args.hardware == "ros":
+    elif args.hardware in ("ros", "ros2"):
         result = _bode_served(args, frequencies, safety)
     else:
         if not args.controller:
@@ -269,6 +284,7 @@ def _bode_plan(args: argparse.Namespace, frequencies, safety) -> dict:
     from jointctl.identification.plan import plan_bode
 
     plant = _plant_file(args.plant)
+    _no_ros2_dry_run(args)
     if args.target is None:
         raise JointCtlError("reads the model from the target: give the robot or scenario (the served "
                             "/robot_description is read only when the robot moves)", field="--dry-run")
@@ -281,6 +297,15 @@ def _bode_plan(args: argparse.Namespace, frequencies, safety) -> dict:
         raise JointCtlError("is required (the loop to sweep)", field="--controller")
     return plan_bode(_loop_scenario(args), args.controller, frequencies, amplitude=args.amplitude, plant=plant,
                      safety=safety)
+
+
+def _no_ros2_dry_run(args: argparse.Namespace) -> None:
+    """A dry run plans on the simulated robot's controller of that name; a ros2_control robot's loop is
+    planned when it runs (its gains are its controller's, read then; ``plan`` in metrics.json)."""
+    if args.hardware == "ros2":
+        raise JointCtlError("plans on the simulated robot's controller; a ros2_control robot's loop is planned "
+                            "on its own gains when the tool runs (see plan in its metrics.json)",
+                            field="--dry-run")
 
 
 def _print_plan(plan: dict) -> int:
@@ -316,16 +341,31 @@ def _bode_industrial(args: argparse.Namespace, frequencies, safety=None) -> dict
 
 def _bode_served(args: argparse.Namespace, frequencies, safety=None) -> dict:
     """``bode --hardware ros``: the served node's loop through its command topic and joint states, in
-    real time, beside the model with the gains its dynamic_reconfigure server holds."""
+    real time, beside the model with the gains its dynamic_reconfigure server holds. ``--hardware ros2``:
+    a ros2_control robot's loop alike, its gains its pid_controller's parameters; a loop with no model
+    here (:func:`jointctl.cli.served_ros2.has_model`) is measured alone."""
     from jointctl.control.joint_controllers import derivative_law
-    from jointctl.identification.frequency_response import compare, measure_servoed
+    from jointctl.identification.frequency_response import analyse, compare, measure_servoed, write_bode
 
     if not args.controller:
         raise JointCtlError("is required (the loop to sweep)", field="--controller")
     plant = _plant_file(args.plant)  # read before the robot moves
-    with _served(args, controller=args.controller) as (session, name):
+    ros2 = args.hardware == "ros2"
+    with _served(args, controller=args.controller, joint=args.joint if ros2 else None) as (session, name):
         hardware = session.hardware
         joint = hardware.joint_of(name)
+        label = hardware.controller_node if ros2 else f"/{hardware.namespace}/{name}"
+        if ros2:
+            from jointctl.cli.served_ros2 import has_model, loop_plant
+
+            plant = loop_plant(hardware, session.robot, plant)
+            if not has_model(hardware):
+                points, context = measure_servoed(session, joint, frequencies, amplitude=args.amplitude,
+                                                  safety=safety)
+                result = analyse(points, None)
+                result.update(controller=label, plant_source=None, **context)
+                write_bode(args.out, result, f"{joint} through {label} ({hardware.loop.actuation} command)")
+                return result
         gains = hardware.gains(name)
         # The law the served controller runs: its parameters' ``derivative``, else ros_controllers' (error).
         law = derivative_law(hardware.controller_parameters().get(name, {}))
@@ -335,8 +375,7 @@ def _bode_served(args: argparse.Namespace, frequencies, safety=None) -> dict:
         context["derivative"] = law
         pose = dict(zip(hardware.joint_names, hardware.position))
         pose[joint] = context["rest"]
-        return compare(points, context, f"/{hardware.namespace}/{name}", plant, session.robot, pose,
-                       out_dir=args.out)
+        return compare(points, context, label, plant, session.robot, pose, out_dir=args.out)
 
 
 def _plant_file(path: Path | None) -> dict | None:
@@ -392,14 +431,21 @@ def _autotune(args: argparse.Namespace) -> int:
     if args.dry_run:
         from jointctl.identification.plan import plan_autotune
 
+        _no_ros2_dry_run(args)
         return _print_plan(plan_autotune(_loop_scenario(args), args.controller, bandwidth_hz=bandwidth_hz, zeta=zeta,
                                          step=args.step, plant=plant, safety=safety, settling_s=settling_s,
                                          ramp_s=args.ramp_s, remedies=tuple(args.remedy),
                                          integrator="euler" if args.hardware == "sim" else "hold"))
-    if args.hardware == "ros":
+    if args.hardware in ("ros", "ros2"):
         from jointctl.identification.autotune import autotune_servoed
 
-        with _served(args, controller=args.controller) as (session, name):
+        ros2 = args.hardware == "ros2"
+        with _served(args, controller=args.controller, joint=args.joint if ros2 else None,
+                     tool="autotune") as (session, name):
+            if ros2:
+                from jointctl.cli.served_ros2 import loop_plant
+
+                plant = loop_plant(session.hardware, session.robot, plant)
             result = autotune_servoed(session, name, bandwidth_hz=bandwidth_hz, zeta=zeta, step=args.step,
                                       plant=plant, out_dir=args.out, settling_s=settling_s, safety=safety)
     else:

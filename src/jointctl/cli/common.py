@@ -38,30 +38,37 @@ def ros_edge(module: str):
         raise JointCtlError(f"ROS 1 is not available ({exc}); install it with 'make ros'") from None
 
 
+#: How a user makes ROS 2 reachable: rclpy and ROS 2's messages come from the ROS 2 the shell sourced.
+ROS2_SETUP_HINT = "source your ROS 2 first, e.g. source /opt/ros/jazzy/setup.bash (make ros2 installs one)"
+
+
 def ros2_edge(module: str):
     """``jointctl.ros2.<module>``, or one line saying how to reach ROS 2 (its setup.bash sourced in this shell)."""
     import importlib
 
     try:
         return importlib.import_module(f"jointctl.ros2.{module}")
-    except ImportError as exc:
+    except ImportError as exc:  # rclpy missing, or its libraries (a setup.bash not sourced): the first line says
         import glob
 
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
         found = sorted(glob.glob("/opt/ros/*/lib/python3*/site-packages/rclpy"))
-        how = (f"source {found[0].split('/lib/')[0]}/setup.bash first" if found
-               else "install ROS 2 (make ros2) and source its setup.bash")
-        raise JointCtlError(f"ROS 2 is not reachable from this shell ({exc}): {how}") from None
+        how = f"source {found[0].split('/lib/')[0]}/setup.bash first" if found else ROS2_SETUP_HINT
+        raise JointCtlError(f"ROS 2 is not available ({reason}): {how}") from None
 
 
 def loop_hardware_arguments(parser: argparse.ArgumentParser) -> None:
     """Where identify, bode and autotune find the joint's loop."""
-    parser.add_argument("--hardware", choices=("sim", "ros", "industrial"), default="sim",
+    parser.add_argument("--hardware", choices=("sim", "ros", "ros2", "industrial"), default="sim",
                         help="sim: the robot in MuJoCo, in simulated time (default); ros: the robot a node serves "
                              "on the ROS graph (jointctl serve), through its topics and dynamic_reconfigure, in "
-                             "real time; industrial: an industrial controller over simple_message (bode only: "
-                             "its own servo loop, streamed positions)")
+                             "real time; ros2: a ros2_control robot on the ROS 2 graph, through its pid_controller "
+                             "or forward command controller, /joint_states and the controller's parameters, in "
+                             "real time (source ROS 2 first); industrial: an industrial controller over "
+                             "simple_message (bode only: its own servo loop, streamed positions)")
     parser.add_argument("--namespace", help="with --hardware ros: the served robot's namespace (default: the "
-                                            "robot's controller file's, e.g. one_DOF_robot)")
+                                            "robot's controller file's, e.g. one_DOF_robot); with --hardware ros2: "
+                                            "its controller_manager's namespace (default: none, /controller_manager)")
     industrial_arguments(parser)
 
 

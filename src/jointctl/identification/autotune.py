@@ -62,7 +62,7 @@ from jointctl.errors import ConfigError
 from jointctl.identification.frequency_response import (LoopModel, _crossing, held_reference, loop_controller,
                                                          measure,
                                                          measure_servoed, model_plant, plant_friction, plant_of,
-                                                         servo_reference)
+                                                         plant_source, servo_reference)
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.identification.step_design import (INTEGRAL_TIMES, OVERSHOOT_TOLERANCE_PCT, SETTLING_TOLERANCE,
                                                  StepDesign, binding, lowest_settling, ramp_for_kick, solve_step,
@@ -445,7 +445,7 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     if plant is not None:
         mass, damping = plant_of(plant)
         gravity = abs(float(plant.get("gravity_load_n", 0.0)))
-        source = "identified"
+        source = plant_source(plant)
     else:
         mass, damping = model_plant(robot, joint, pose)
         source = "robot model"
@@ -710,9 +710,12 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
                      settling_s: float | None = None, safety: Safety | None = None) -> dict:
     """Tune a loop that runs on a served robot (``session.hardware`` a
     :class:`~jointctl.ros.served_hardware.ServedRobotHardware`: the served node's controller, its
-    gains through dynamic_reconfigure). The design is :func:`tune`'s; the check sets the new gains
-    on the served node, steps and sweeps it through the command topic, and puts the previous gains
-    back whatever happens; the YAML is the served node's controller parameters with the new gains."""
+    gains through dynamic_reconfigure; or a ros2_control robot's
+    :class:`~jointctl.ros2.served_hardware.ServedRos2Hardware`, its gains the controller's parameters).
+    The design is :func:`tune`'s; the check sets the new gains on the robot, steps and sweeps it
+    through the command topic, and puts the previous gains back whatever happens; the YAML is the
+    robot's controller parameters with the new gains (the hardware's ``tuned_parameters`` when it has
+    one: a ros2_control parameters file)."""
     step = DEFAULT_STEP if step is None else step
     _check_spec(bandwidth_hz, step)
     hardware = session.hardware
@@ -741,9 +744,13 @@ def autotune_servoed(session: Session, controller_name: str, *, bandwidth_hz: fl
         _warn(result, safety)
     result.setdefault("warnings", []).extend(spec_warnings(result))
     if out_dir is not None:
-        namespace = hardware.namespace
-        _write(out_dir, f"{namespace}_tuned_params.yaml", {namespace: hardware.controller_parameters()},
-               controller_name, result)
+        tuned = getattr(hardware, "tuned_parameters", None)
+        if tuned is not None:
+            _write_document(out_dir, *tuned(controller_name, result["gains"]), controller_name, result)
+        else:
+            namespace = hardware.namespace
+            _write(out_dir, f"{namespace}_tuned_params.yaml", {namespace: hardware.controller_parameters()},
+                   controller_name, result)
     return result
 
 
@@ -972,6 +979,14 @@ def _write(out_dir, file_name: str, document: dict, controller_name: str, result
             found = True
     if not found:
         raise ConfigError("the controller is not in its file", source=file_name, field=controller_name)
+    _write_document(out, file_name, tuned, controller_name, result)
+
+
+def _write_document(out_dir, file_name: str, tuned: dict, controller_name: str, result: dict) -> None:
+    """``tuned`` (a controller file with ``controller_name``'s tuned gains in) as ``file_name`` in ``out_dir``
+    under a header naming the spec, and ``metrics.json``; ``result["yaml"]`` the file's path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
     header = (f"# {file_name} with {controller_name} tuned by jointctl autotune for "
               f"{result['spec']['bandwidth_hz']:g} Hz" + (f", damping ratio {result['spec']['zeta']:g}"
                                                          if result["loop"] == "position" else "") + ".\n")

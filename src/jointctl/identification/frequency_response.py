@@ -338,13 +338,20 @@ def loop_model(robot, joint: str, pose: dict, gains: dict, period_s: float, loop
     ``plant`` (an identification's metrics) or else ``robot``'s model at ``pose`` (joint name -> position)."""
     if plant is not None:
         mass, damping = plant_of(plant)
-        source = "identified"
+        source = plant_source(plant)
     else:
         mass, damping = model_plant(robot, joint, pose)
         source = "robot model"
     model = LoopModel(float(mass), float(damping), gains["p"], gains["i"], gains["d"], period_s, loop,
                       derivative if derivative in ("error", "measurement") else "error")
     return model, source
+
+
+def plant_source(plant: dict) -> str:
+    """Where a plant given as a dict came from: its ``plant_source`` when it says (a plant the hardware
+    implies, e.g. a unit inertia behind an acceleration command), else "identified" (an identification's
+    metrics)."""
+    return str(plant.get("plant_source", "identified"))
 
 
 def plant_friction(plant: dict | None) -> float | None:

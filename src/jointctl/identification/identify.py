@@ -281,7 +281,8 @@ def _excite(session: Session, joint: str, set_reference, *, amplitude, duration_
 def loop_settings(session, joint: str) -> tuple[dict | None, str, bool, float | None]:
     """(gains ``{"p", "i", "d"}``, derivative law, whether its p alone holds gravity (a droop), effort
     limit) of the position loop that moves ``joint``: the session's JointPositionController, or a served
-    ros_control loop (its gains through dynamic_reconfigure); (None, "error", False, None) when unknown."""
+    ros_control or ros2_control loop (its gains through dynamic_reconfigure, or its pid_controller's
+    parameters); (None, "error", False, None) when unknown (a loop without gains)."""
     controller = session.manager.commanding(joint)
     if isinstance(controller, JointPositionController):
         g = controller.pid.gains
@@ -291,8 +292,10 @@ def loop_settings(session, joint: str) -> tuple[dict | None, str, bool, float | 
     served = getattr(hardware, "controllers", None)
     if isinstance(served, dict) and joint in served and hasattr(hardware, "gains"):
         name = served[joint][1]
-        parameters = hardware.controller_parameters().get(name, {})
         gains = hardware.gains(name)
+        if gains is None:  # the hardware's own servo (a forward command controller): no gains to model
+            return None, "error", False, None
+        parameters = hardware.controller_parameters().get(name, {})
         feedforward = parameters.get("feedforward", {}) if isinstance(parameters, dict) else {}
         droops = not gains.get("i") and not (isinstance(feedforward, dict) and feedforward.get("gravity"))
         return ({k: float(gains.get(k, 0.0)) for k in ("p", "i", "d")}, derivative_law(parameters), droops, None)
