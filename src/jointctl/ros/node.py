@@ -56,7 +56,7 @@ from jointctl.ros.gains import attach_gain_servers
 from jointctl.ros.industrial import IndustrialTopics
 from jointctl.ros.robot_description import Viewers, attach_robot_description
 from jointctl.ros.world_services import attach_world_services
-from jointctl.runtime.clock import WallClockPacer
+from jointctl.runtime.clock import StampClock, WallClockPacer
 from jointctl.runtime.lateness import watch_lateness
 from jointctl.scenario.session import Session
 from jointctl.trajectory.executor import TrajectoryExecutor
@@ -66,26 +66,11 @@ MASTER_CHECK_S = 1.0  # how often the node checks that its master is still the o
 SWITCH_INTERVAL_S = 2e-4  # GIL hand-over interval while serving [s]
 
 
-class LoopClock:
-    """Maps loop time to ROS time: the wall clock at loop time zero plus loop time (at speed 1),
-    or loop time itself on simulated time (``/clock``)."""
-
-    def __init__(self, loop, sim_time: bool) -> None:
-        self.loop = loop
-        self.sim_time = sim_time
-        self.origin_s = 0.0
-
-    def start(self) -> None:
-        self.origin_s = 0.0 if self.sim_time else time.time() - self.loop.time_s
-
-    def ros_time_at_loop_zero(self) -> float:
-        return self.origin_s
+class LoopClock(StampClock):
+    """Maps loop time to ROS time (:class:`~jointctl.runtime.clock.StampClock`, as rospy.Time)."""
 
     def ros_time(self, loop_s: float) -> rospy.Time:
-        return rospy.Time.from_sec(self.origin_s + loop_s)
-
-    def loop_now(self) -> float:
-        return self.loop.time_s
+        return rospy.Time.from_sec(self.seconds(loop_s))
 
 
 def ensure_master() -> subprocess.Popen | None:

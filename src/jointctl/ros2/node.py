@@ -25,15 +25,14 @@ import contextlib
 import signal
 import sys
 import threading
-import time
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rosgraph_msgs.msg import Clock
 from geometry_msgs.msg import TransformStamped
+from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64MultiArray, String
 from tf2_msgs.msg import TFMessage
 
@@ -42,7 +41,7 @@ from jointctl.recording.foxglove_messages import RobotFrames
 from jointctl.ros2.controller_manager import ControllerManagerServices
 from jointctl.ros2.controllers import faces
 from jointctl.ros2.conversions import time_msg
-from jointctl.runtime.clock import WallClockPacer
+from jointctl.runtime.clock import StampClock, WallClockPacer
 from jointctl.runtime.lateness import watch_lateness
 from jointctl.scenario.session import Session
 
@@ -52,24 +51,11 @@ EXECUTOR_THREADS = 4
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
-class LoopClock:
-    """Loop time [s] -> ROS 2 stamps: loop time itself on simulated time, else the wall clock at loop time
-    zero plus loop time (at speed 1)."""
-
-    def __init__(self, loop, sim_time: bool) -> None:
-        self.loop, self.sim_time, self.origin_s = loop, sim_time, 0.0
-
-    def start(self) -> None:
-        self.origin_s = 0.0 if self.sim_time else time.time() - self.loop.time_s
-
-    def ros_time_at_loop_zero(self) -> float:
-        return self.origin_s
+class LoopClock(StampClock):
+    """Loop time [s] -> ROS 2 stamps (:class:`~jointctl.runtime.clock.StampClock`, as builtin_interfaces/Time)."""
 
     def stamp(self, loop_s: float):
-        return time_msg(self.origin_s + loop_s)
-
-    def loop_now(self) -> float:
-        return self.loop.time_s
+        return time_msg(self.seconds(loop_s))
 
 
 class Ros2Robot:

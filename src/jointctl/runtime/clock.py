@@ -61,3 +61,27 @@ class WallClockPacer:
             time.sleep(remaining - SPIN_S)
         while time.perf_counter() < deadline:
             pass
+
+class StampClock:
+    """Loop time [s] -> the time the edges stamp messages with [s]: the wall clock at loop time zero plus loop time
+    (at speed 1), or loop time itself on simulated time (``/clock``). ROS 1's and ROS 2's edges turn
+    :meth:`seconds` into their own time types."""
+
+    def __init__(self, loop, sim_time: bool) -> None:
+        self.loop = loop
+        self.sim_time = sim_time
+        self.origin_s = 0.0
+
+    def start(self) -> None:
+        """Fix the origin: now on the wall clock is the loop's present time."""
+        self.origin_s = 0.0 if self.sim_time else time.time() - self.loop.time_s
+
+    def ros_time_at_loop_zero(self) -> float:
+        return self.origin_s
+
+    def seconds(self, loop_s: float) -> float:
+        return self.origin_s + loop_s
+
+    def loop_now(self) -> float:
+        return self.loop.time_s
+
