@@ -65,6 +65,22 @@ GAIN_FIELDS = ("p", "i", "d", "i_clamp_max", "i_clamp_min")
 RESULT_WAIT_S = 0.05  # how often a goal's execute callback looks for a cancel [s]
 
 
+class _Face:
+    """What the faces share: whether their controller runs (an inactive one's doors refuse, logged, as a
+    deactivated ros2_control controller takes no reference: nothing it is sent moves the robot later)."""
+
+    node: Node
+    controller: object
+    manager = None  # set by faces()
+
+    def _refused_while_inactive(self, what: str) -> bool:
+        if self.manager is None or self.controller in self.manager.active:
+            return False
+        self.node.get_logger().warn(f"refused {what}: the controller is inactive (ros2 control switch_controllers "
+                                    f"--activate {self.controller.name})")
+        return True
+
+
 def pid_faced(controller) -> bool:
     """Whether ``controller`` gets pid_controller's face (a PID on one joint, through its gains)."""
     return isinstance(controller, _EffortJointController)
@@ -80,7 +96,7 @@ class JointStateFace:
             joint_state_to_ros2(sample, clock.stamp(sample.time_s))))
 
 
-class PidFace:
+class PidFace(_Face):
     """pid_controller's topics and parameters on a jointctl PID joint controller (see the module's doc)."""
 
     def __init__(self, node: Node, controller: _EffortJointController, session, clock,
@@ -136,6 +152,8 @@ class PidFace:
 
     # -- reference (executor thread) -------------------------------------------------------------
     def _on_reference(self, msg: MultiDOFCommand) -> None:
+        if self._refused_while_inactive("a reference"):
+            return
         joint = self.controller.joint
         names = list(msg.dof_names)
         if names and names != [joint]:
@@ -169,7 +187,7 @@ class PidFace:
         self.state_publisher.publish(msg)
 
 
-class PidControllerFace:
+class PidControllerFace(_Face):
     """ros2_controllers' pid_controller on jointctl's :class:`PidController` (see the module's docstring)."""
 
     def __init__(self, node: Node, controller: PidController, clock) -> None:
@@ -200,6 +218,8 @@ class PidControllerFace:
         return SetParametersResult(successful=True)
 
     def _on_reference(self, msg: MultiDOFCommand) -> None:
+        if self._refused_while_inactive("a reference"):
+            return
         try:
             self.controller.set_reference(list(msg.values), list(msg.values_dot) or None, list(msg.dof_names) or None)
         except InvalidCommand as exc:
@@ -222,7 +242,7 @@ class PidControllerFace:
         self.state_publisher.publish(msg)
 
 
-class ForwardCommandFace:
+class ForwardCommandFace(_Face):
     """forward_command_controller's ``~/commands`` on jointctl's :class:`ForwardCommandController`."""
 
     def __init__(self, node: Node, controller: ForwardCommandController) -> None:
@@ -233,13 +253,15 @@ class ForwardCommandFace:
         self.subscription = node.create_subscription(Float64MultiArray, "~/commands", self._on_commands, 1)
 
     def _on_commands(self, msg: Float64MultiArray) -> None:
+        if self._refused_while_inactive("commands"):
+            return
         try:
             self.controller.set_commands(list(msg.data))
         except InvalidCommand as exc:
             self.node.get_logger().warn(f"refused commands: {exc}")
 
 
-class TrajectoryFace:
+class TrajectoryFace(_Face):
     """joint_trajectory_controller's action and topic on a trajectory executor (see the module's doc)."""
 
     def __init__(self, node: Node, executor: TrajectoryExecutor, clock, loop, hardware, state_rate_hz: float) -> None:
@@ -281,6 +303,8 @@ class TrajectoryFace:
         return trajectory_from_ros2(msg, self.clock.ros_time_at_loop_zero())
 
     def _on_goal(self, goal) -> GoalResponse:
+        if self._refused_while_inactive("a goal"):
+            return GoalResponse.REJECT
         try:
             self.executor.check_goal_shape(self._trajectory(goal.trajectory))
         except InvalidTrajectory as exc:
@@ -289,6 +313,8 @@ class TrajectoryFace:
         return GoalResponse.ACCEPT
 
     def _on_topic(self, msg: Ros2JointTrajectory) -> None:
+        if self._refused_while_inactive("a trajectory"):
+            return
         try:
             self.executor.submit(self._trajectory(msg), now_s=self.clock.loop_now())
         except InvalidTrajectory as exc:
@@ -342,14 +368,18 @@ def faces(node_for, session, clock, state_rate_hz: float) -> list:
     made = []
     for controller in manager.active:
         if isinstance(controller, JointStateController):
-            made.append(JointStateFace(node_for(controller.name), controller, clock))
+            face = JointStateFace(node_for(controller.name), controller, clock)
         elif isinstance(controller, PidController):
-            made.append(PidControllerFace(node_for(controller.name), controller, clock))
+            face = PidControllerFace(node_for(controller.name), controller, clock)
         elif isinstance(controller, ForwardCommandController):
-            made.append(ForwardCommandFace(node_for(controller.name), controller))
+            face = ForwardCommandFace(node_for(controller.name), controller)
         elif pid_faced(controller) and manager.command_owner(controller.name) is None:
-            made.append(PidFace(node_for(controller.name), controller, session, clock, state_rate_hz))
+            face = PidFace(node_for(controller.name), controller, session, clock, state_rate_hz)
         elif isinstance(controller, TrajectoryExecutor):
-            made.append(TrajectoryFace(node_for(controller.name), controller, clock, session.loop, session.hardware,
-                                       state_rate_hz))
+            face = TrajectoryFace(node_for(controller.name), controller, clock, session.loop, session.hardware,
+                                  state_rate_hz)
+        else:
+            continue
+        face.manager = manager
+        made.append(face)
     return made
