@@ -265,7 +265,7 @@ class TrajectoryFace(_Face):
     """joint_trajectory_controller's action and topic on a trajectory executor (see the module's doc)."""
 
     def __init__(self, node: Node, executor: TrajectoryExecutor, clock, loop, hardware, state_rate_hz: float) -> None:
-        self.node, self.executor, self.clock = node, executor, clock
+        self.node, self.executor, self.controller, self.clock = node, executor, executor, clock
         group = ReentrantCallbackGroup()
         self.server = ActionServer(node, FollowJointTrajectory, "~/follow_joint_trajectory",
                                    execute_callback=self._execute, goal_callback=self._on_goal,
