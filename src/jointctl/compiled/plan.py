@@ -48,7 +48,9 @@ def controller_reason(controller) -> str | None:
     kind = type(controller)
     if kind not in _CONTROLLERS:
         name = getattr(controller, "name", None)
-        return f"{'controller ' + repr(name) if name else 'the update'} ({kind.__name__}) has no compiled form"
+        if name is None:  # an update of the manager's own (the model feed-forward)
+            return f"the update {kind.__name__}.update has no compiled form"
+        return f"controller {name!r} ({kind.__name__}) has no compiled form"
     what = f"controller {controller.name!r} ({kind.__name__})"
     if controller.upstream is not None:
         return f"{what} is chained to {controller.upstream!r}"
