@@ -8,8 +8,11 @@ module would otherwise load stale code. It is ``$JOINTCTL_KERNEL_CACHE`` when se
 ``$XDG_CACHE_HOME/jointctl/kernels/<digest>`` (``~/.cache`` by default).
 
 Kernels compile with IEEE arithmetic as Python's (no fast-math, Python's error model): the same
-operations in the same order give the same bits as the Python they mirror. numba is imported only
-when a kernel module is, so jointctl runs (on its Python loop) where numba is missing.
+operations in the same order give the same bits as the Python they mirror. They allocate nothing: they
+work on arrays they are given, so they compile without numba's reference counting (``_nrt=False``),
+whose atomic counts on every array argument of every call cost more than a controller's arithmetic.
+numba is imported only when a kernel module is, so jointctl runs (on its Python loop) where numba is
+missing.
 """
 
 from __future__ import annotations
@@ -43,13 +46,14 @@ def cache_dir() -> Path:
 
 
 def kernel(function):
-    """``function`` compiled by numba (nopython, cached in :func:`cache_dir`, the GIL released while it runs)."""
+    """``function`` compiled by numba (nopython, no reference counting, cached in :func:`cache_dir`, the GIL
+    released while it runs)."""
     import numba
     from numba.core import config
 
     saved = config.CACHE_DIR
     config.CACHE_DIR = str(cache_dir())  # read once, as the dispatcher picks its cache locator
     try:
-        return numba.njit(cache=True, nogil=True)(function)
+        return numba.njit(cache=True, nogil=True, _nrt=False)(function)
     finally:
         config.CACHE_DIR = saved

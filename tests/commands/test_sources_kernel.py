@@ -21,9 +21,9 @@ def test_the_kernel_samples_as_the_source_does(source):
     times = np.arange(3000) * 0.001  # the loop's times: k * period
     expected = [source.sample(t) for t in times]
     source.reset()
-    parameters, state = (np.array(row) for row in pack_source(source))
-    assert [source_sample(parameters, state, t) for t in times] == expected
-    unpack_source(source, state)
+    parameters, state = (np.array([row]) for row in pack_source(source))
+    assert [source_sample(parameters, state, 0, t) for t in times] == expected
+    unpack_source(source, state[0])
     if isinstance(source, SineSource):  # the held message goes back: the next sample needs no new one
         assert source._hold.k == int(np.floor(times[-1] * source.rate_hz + 1e-9))
 

@@ -18,8 +18,9 @@ def test_the_wrap_is_the_python_wrap():
 
 
 def test_the_clamp_counts_and_keeps_the_reference_furthest_outside():
-    state = np.zeros(STATE)
-    assert clamp_counted(state, 1.5, -1.0, 1.0) == 1.0
-    assert clamp_counted(state, -3.0, -1.0, 1.0) == -1.0
-    assert clamp_counted(state, 1.2, -1.0, 1.0) == 1.0
-    assert state[CLAMPED] == 3 and state[HAS_FURTHEST] == 1.0 and state[FURTHEST] == -3.0
+    state = np.zeros((2, STATE))
+    assert clamp_counted(state, 1, 1.5, -1.0, 1.0) == 1.0
+    assert clamp_counted(state, 1, -3.0, -1.0, 1.0) == -1.0
+    assert clamp_counted(state, 1, 1.2, -1.0, 1.0) == 1.0
+    assert state[1, CLAMPED] == 3 and state[1, HAS_FURTHEST] == 1.0 and state[1, FURTHEST] == -3.0
+    assert not state[0].any()

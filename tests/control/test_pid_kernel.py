@@ -21,9 +21,9 @@ gain = st.floats(0.0, 1e4, allow_nan=False)
                                                                         max_size=20))
 def test_the_kernel_is_pid_compute(p, i, d, clamp, antiwindup, limit, steps):
     pid = Pid(PidGains(p, i, d, -clamp, clamp, antiwindup), limit)
-    gains = np.array(pid_gains(pid))
+    table = np.array([[0.0, *pid_gains(pid)]])  # the gains from column 1 of row 0
     i_state = 0.0
     for error, rate in steps:
         expected = pid.compute(error, rate, 0.001)
-        effort, i_state = pid_compute(gains, i_state, error, rate, 0.001)
+        effort, i_state = pid_compute(table, 0, 1, i_state, error, rate, 0.001)
         assert effort == expected and i_state == pid.i_state

@@ -1,8 +1,8 @@
 """The compiled forms of the constant, step and sine command sources: :func:`source_sample` is their
 ``sample(t)``, operation for operation (an expression source has none: a run with one stays in Python).
 
-A source is a row of parameters (its kind, then its numbers) and a row of state (the sine's held message);
-:func:`pack_source` makes them and :func:`unpack_source` puts the state back.
+A source is a row of parameters (its kind, then its numbers) and a row of state (the sine's held message), row
+``f`` of the compiled cycle's tables; :func:`pack_source` makes them and :func:`unpack_source` puts the state back.
 """
 
 from __future__ import annotations
@@ -57,28 +57,28 @@ def unpack_source(source, state) -> None:
 
 
 @kernel
-def source_sample(parameters, state, t):
-    """The source's value at loop time ``t`` [s], in the unit of the command it feeds."""
-    kind = parameters[KIND]
+def source_sample(parameters, state, f, t):
+    """Source ``f``'s value at loop time ``t`` [s], in the unit of the command it feeds."""
+    kind = parameters[f, KIND]
     if kind == CONSTANT:
-        return parameters[VALUE]
+        return parameters[f, VALUE]
     if kind == STEP:
-        at = parameters[AT]
+        at = parameters[f, AT]
         if t < at:
-            return parameters[INITIAL]
-        if t >= at + parameters[RAMP]:
-            return parameters[FINAL]
-        initial = parameters[INITIAL]
-        return initial + (parameters[FINAL] - initial) * (t - at) / parameters[RAMP]
-    rate = parameters[RATE]
+            return parameters[f, INITIAL]
+        if t >= at + parameters[f, RAMP]:
+            return parameters[f, FINAL]
+        initial = parameters[f, INITIAL]
+        return initial + (parameters[f, FINAL] - initial) * (t - at) / parameters[f, RAMP]
+    rate = parameters[f, RATE]
     k = math.floor(t * rate + _EPSILON)
-    if state[HOLDS] == 0.0 or k != state[HELD_K]:
-        omega = 2.0 * math.pi * parameters[FREQUENCY]
+    if state[f, HOLDS] == 0.0 or k != state[f, HELD_K]:
+        omega = 2.0 * math.pi * parameters[f, FREQUENCY]
         t_k = k / rate
-        if parameters[DERIVATIVE] != 0.0:
-            state[HELD_VALUE] = omega * parameters[AMPLITUDE] * math.cos(omega * t_k)
+        if parameters[f, DERIVATIVE] != 0.0:
+            state[f, HELD_VALUE] = omega * parameters[f, AMPLITUDE] * math.cos(omega * t_k)
         else:
-            state[HELD_VALUE] = parameters[OFFSET] + parameters[AMPLITUDE] * math.sin(omega * t_k)
-        state[HELD_K] = k
-        state[HOLDS] = 1.0
-    return state[HELD_VALUE]
+            state[f, HELD_VALUE] = parameters[f, OFFSET] + parameters[f, AMPLITUDE] * math.sin(omega * t_k)
+        state[f, HELD_K] = k
+        state[f, HOLDS] = 1.0
+    return state[f, HELD_VALUE]

@@ -50,25 +50,25 @@ def run_cycles(k0, n, period_s,
     for k in range(k0, k0 + n):
         t = k * period_s
         for f in range(feed_parameters.shape[0]):
-            value = source_sample(feed_parameters[f], feed_state[f], t)
+            value = source_sample(feed_parameters, feed_state, f, t)
             c = feed_controller[f]
             if kinds[c] == POSITION:
-                feed_position(parameters[c], state[c], value, reference_positions, reference_velocities,
+                feed_position(parameters, state, c, value, reference_positions, reference_velocities,
                               reference_accelerations)
             else:
-                feed_velocity(parameters[c], value, reference_velocities)
+                feed_velocity(parameters, c, value, reference_velocities)
         mujoco_read(qpos, qvel, actuator_force, sensordata, qpos_adr, dof_adr, actuator, reduction, sensors,
                     position, velocity, effort, wrench)
         for c in range(kinds.shape[0]):
             kind = kinds[c]
             if kind == POSITION:
-                position_update(parameters[c], state[c], reference_positions, reference_velocities, references,
+                position_update(parameters, state, c, reference_positions, reference_velocities, references,
                                 position, velocity, command, period_s)
             elif kind == VELOCITY:
-                velocity_update(parameters[c], state[c], reference_velocities, references, velocity, command,
+                velocity_update(parameters, state, c, reference_velocities, references, velocity, command,
                                 period_s)
             else:
-                joint_state_update(parameters[c], state[c], latest[c], t, position, velocity, effort)
+                joint_state_update(parameters, state, c, latest, t, position, velocity, effort)
         total = 0.0
         for j in range(joints):
             total += command[j]
@@ -77,10 +77,11 @@ def run_cycles(k0, n, period_s,
             return
         mujoco_write(ctrl, actuator, reduction, command)
         if trace_on and trace_due(trace_state):
-            trace_row(rows[kept], t, references, position, velocity, effort, wrench)
+            trace_row(rows, kept, t, references, position, velocity, effort, wrench)
             kept += 1
         if frames_on and frame_due(frame_state, t):
-            frames[framed, :] = qpos
+            for q in range(qpos.shape[0]):
+                frames[framed, q] = qpos[q]
             frame_times[framed] = t
             framed += 1
         if mujoco_advance(model_address, data_address, nstep, warnings, counters, warnings_seen):

@@ -3,7 +3,7 @@
 (fed by a command source) on arrays, statement for statement.
 
 A controller is a row of parameters and a row of state (floats, indexed by the names below; flags are 1.0
-or 0.0). :func:`pack_position` and :func:`pack_velocity` make them from the Python controller, and
+or 0.0), row ``c`` of the compiled cycle's tables. :func:`pack_position` and :func:`pack_velocity` make them from the Python controller, and
 :func:`unpack_position` and :func:`unpack_velocity` put the state back, so a run can go on in Python at any
 cycle boundary. Covered: both derivative laws, position and velocity limits (clamps counted as in Python),
 continuous joints, the integral with its clamp and antiwindup, the damping feed-forward. Not covered (the
@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
-from jointctl.control.pid_kernel import GAINS, pid_compute, pid_gains
+from jointctl.control.pid_kernel import GAINS, OUTPUT_LIMIT, pid_compute, pid_gains
 from jointctl.jit import kernel
 
 #: The parameters row: the hardware joint index, the position range [m or rad], flags (a continuous joint,
@@ -87,80 +87,80 @@ def wrap_angle(angle):
 
 
 @kernel
-def clamp_counted(state, value, low, high):
-    """``value`` clamped to [low, high], counted in ``state`` (``_EffortJointController._clamp``)."""
-    state[CLAMPED] += 1.0
+def clamp_counted(state, c, value, low, high):
+    """``value`` clamped to [low, high], counted in ``state[c]`` (``_EffortJointController._clamp``)."""
+    state[c, CLAMPED] += 1.0
     bound = low if value < low else high
-    if state[HAS_FURTHEST] == 0.0:
-        state[FURTHEST] = value
-        state[HAS_FURTHEST] = 1.0
+    if state[c, HAS_FURTHEST] == 0.0:
+        state[c, FURTHEST] = value
+        state[c, HAS_FURTHEST] = 1.0
     else:
-        furthest = state[FURTHEST]
+        furthest = state[c, FURTHEST]
         if abs(value - bound) > abs(furthest - (low if furthest < low else high)):
-            state[FURTHEST] = value
+            state[c, FURTHEST] = value
     return bound
 
 
 @kernel
-def feed_position(parameters, state, value, positions, velocities, accelerations):
+def feed_position(parameters, state, c, value, positions, velocities, accelerations):
     """``JointPositionController.set_reference(value)``: a plain position command."""
-    i = int(parameters[JOINT])
+    i = int(parameters[c, JOINT])
     velocities[i] = 0.0
     accelerations[i] = 0.0
-    state[EDGE_VELOCITY] = 0.0
+    state[c, EDGE_VELOCITY] = 0.0
     positions[i] = value
 
 
 @kernel
-def feed_velocity(parameters, value, velocities):
+def feed_velocity(parameters, c, value, velocities):
     """``JointVelocityController.set_reference(value)``."""
-    velocities[int(parameters[JOINT])] = value
+    velocities[int(parameters[c, JOINT])] = value
 
 
 @kernel
-def position_update(parameters, state, positions, velocities, references, position, velocity, effort_command,
+def position_update(parameters, state, c, positions, velocities, references, position, velocity, effort_command,
                     period_s):
     """``JointPositionController.update``: the reference interfaces and measured state in, the effort out."""
-    i = int(parameters[JOINT])
+    i = int(parameters[c, JOINT])
     reference, reference_velocity = positions[i], velocities[i]
-    lower, upper = parameters[LOWER], parameters[UPPER]
+    lower, upper = parameters[c, LOWER], parameters[c, UPPER]
     if reference < lower or reference > upper:
-        reference = clamp_counted(state, reference, lower, upper)
+        reference = clamp_counted(state, c, reference, lower, upper)
     references[i] = reference
     error = reference - position[i]
-    if parameters[CONTINUOUS] != 0.0 and not -math.pi < error <= math.pi:
+    if parameters[c, CONTINUOUS] != 0.0 and not -math.pi < error <= math.pi:
         error = wrap_angle(error)
-    if parameters[ON_ERROR] != 0.0 and state[EDGE_VELOCITY] == 0.0:
-        if state[LAST_VALID] != 0.0:
-            rate = (error - state[LAST_ERROR]) / period_s
+    if parameters[c, ON_ERROR] != 0.0 and state[c, EDGE_VELOCITY] == 0.0:
+        if state[c, LAST_VALID] != 0.0:
+            rate = (error - state[c, LAST_ERROR]) / period_s
         else:
-            rate = state[LAST_RATE]
-            state[LAST_VALID] = 1.0
-        state[LAST_ERROR] = error
+            rate = state[c, LAST_RATE]
+            state[c, LAST_VALID] = 1.0
+        state[c, LAST_ERROR] = error
     else:
         rate = reference_velocity - velocity[i]
-    state[LAST_RATE] = rate
-    effort, state[I_STATE] = pid_compute(parameters[PID:], state[I_STATE], error, rate, period_s)
-    if parameters[FF_DAMPING] != 0.0:
-        effort += parameters[JOINT_DAMPING] * reference_velocity
-        limit = parameters[PID + 6]  # the output limit: the joint's effort limit
+    state[c, LAST_RATE] = rate
+    effort, state[c, I_STATE] = pid_compute(parameters, c, PID, state[c, I_STATE], error, rate, period_s)
+    if parameters[c, FF_DAMPING] != 0.0:
+        effort += parameters[c, JOINT_DAMPING] * reference_velocity
+        limit = parameters[c, PID + OUTPUT_LIMIT]  # the joint's effort limit
         effort = limit if effort > limit else -limit if effort < -limit else effort
     effort_command[i] = effort
 
 
 @kernel
-def velocity_update(parameters, state, velocities, references, velocity, effort_command, period_s):
+def velocity_update(parameters, state, c, velocities, references, velocity, effort_command, period_s):
     """``JointVelocityController.update`` (no watchdog): the reference interface and measured state in, the
     effort out."""
-    i = int(parameters[JOINT])
+    i = int(parameters[c, JOINT])
     reference = velocities[i]
-    limit = parameters[VELOCITY_LIMIT]
+    limit = parameters[c, VELOCITY_LIMIT]
     if reference < -limit or reference > limit:
-        reference = clamp_counted(state, reference, -limit, limit)
+        reference = clamp_counted(state, c, reference, -limit, limit)
     references[i] = reference
     error = reference - velocity[i]
-    rate = (error - state[LAST_ERROR]) / period_s if state[LAST_VALID] != 0.0 else 0.0
-    state[LAST_VALID] = 1.0
-    state[LAST_ERROR] = error
-    effort, state[I_STATE] = pid_compute(parameters[PID:], state[I_STATE], error, rate, period_s)
+    rate = (error - state[c, LAST_ERROR]) / period_s if state[c, LAST_VALID] != 0.0 else 0.0
+    state[c, LAST_VALID] = 1.0
+    state[c, LAST_ERROR] = error
+    effort, state[c, I_STATE] = pid_compute(parameters, c, PID, state[c, I_STATE], error, rate, period_s)
     effort_command[i] = effort

@@ -32,13 +32,15 @@ def unpack_joint_state(c: JointStateController, state, latest, joint_names: tupl
 
 
 @kernel
-def joint_state_update(parameters, state, latest, time_s, position, velocity, effort):
-    """``JointStateController.update``: a sample on each multiple of the period, kept in ``latest``."""
-    if time_s + 1e-9 < state[NEXT_K] * parameters[PERIOD]:
+def joint_state_update(parameters, state, c, latest, time_s, position, velocity, effort):
+    """``JointStateController.update`` of row ``c``: a sample on each multiple of the period, kept in
+    ``latest[c]``."""
+    if time_s + 1e-9 < state[c, NEXT_K] * parameters[c, PERIOD]:
         return
-    state[NEXT_K] += 1.0
-    latest[0, :] = position
-    latest[1, :] = velocity
-    latest[2, :] = effort
-    state[LATEST_TIME] = time_s
-    state[PUBLISHED] += 1.0
+    state[c, NEXT_K] += 1.0
+    for j in range(position.shape[0]):
+        latest[c, 0, j] = position[j]
+        latest[c, 1, j] = velocity[j]
+        latest[c, 2, j] = effort[j]
+    state[c, LATEST_TIME] = time_s
+    state[c, PUBLISHED] += 1.0

@@ -1,7 +1,8 @@
 """The compiled form of :class:`~jointctl.control.pid.Pid`: :func:`pid_compute` is ``Pid.compute``, term for term.
 
-A PID's gains are a row of floats (:func:`pid_gains`, indexed by the names below); its integral state is the
-caller's, passed in and returned.
+A PID's gains are part of a row of floats (:func:`pid_gains`, indexed from the row's ``first`` column by the names
+below); its integral state is the caller's, passed in and returned. Like every kernel it takes the compiled
+cycle's table and a row number (every controller's parameters in one array).
 """
 
 from __future__ import annotations
@@ -22,13 +23,14 @@ def pid_gains(pid: Pid) -> list[float]:
 
 
 @kernel
-def pid_compute(gains, i_state, error, error_rate, dt):
-    """(effort, the integral state after this call) for ``error``, its rate [error/s] over ``dt`` [s]."""
-    i_state = i_state + gains[I] * dt * error
-    i_min, i_max = gains[I_MIN], gains[I_MAX]
-    if gains[ANTIWINDUP] != 0.0:
+def pid_compute(table, row, first, i_state, error, error_rate, dt):
+    """(effort, the integral state after this call) for ``error``, its rate [error/s] over ``dt`` [s], with the
+    gains at ``table[row, first:]``."""
+    i_state = i_state + table[row, first + I] * dt * error
+    i_min, i_max = table[row, first + I_MIN], table[row, first + I_MAX]
+    if table[row, first + ANTIWINDUP] != 0.0:
         i_state = i_min if i_state < i_min else i_max if i_state > i_max else i_state
     i_term = i_min if i_state < i_min else i_max if i_state > i_max else i_state
-    u = gains[P] * error + i_term + gains[D] * error_rate
-    limit = gains[OUTPUT_LIMIT]
+    u = table[row, first + P] * error + i_term + table[row, first + D] * error_rate
+    limit = table[row, first + OUTPUT_LIMIT]
     return (limit if u > limit else -limit if u < -limit else u), i_state

@@ -31,16 +31,17 @@ def trace_due(state):
 
 
 @kernel
-def trace_row(row, time_s, references, position, velocity, effort, wrench):
-    """Fill ``row`` (the trace's columns) at loop time ``time_s`` [s]; ``wrench`` is sensors x 6."""
+def trace_row(rows, r, time_s, references, position, velocity, effort, wrench):
+    """Fill row ``r`` of ``rows`` (the trace's columns) at loop time ``time_s`` [s]; ``wrench`` is sensors x 6."""
     n = position.shape[0]
-    row[0] = time_s
-    row[1:1 + n] = references
-    row[1 + n:1 + 2 * n] = position
-    row[1 + 2 * n:1 + 3 * n] = velocity
-    row[1 + 3 * n:1 + 4 * n] = effort
-    j = 1 + 4 * n
+    rows[r, 0] = time_s
+    for j in range(n):
+        rows[r, 1 + j] = references[j]
+        rows[r, 1 + n + j] = position[j]
+        rows[r, 1 + 2 * n + j] = velocity[j]
+        rows[r, 1 + 3 * n + j] = effort[j]
+    column = 1 + 4 * n
     for s in range(wrench.shape[0]):
         for a in range(6):
-            row[j] = wrench[s, a]
-            j += 1
+            rows[r, column] = wrench[s, a]
+            column += 1
