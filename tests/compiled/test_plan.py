@@ -102,3 +102,28 @@ def test_the_loop_field_takes_auto_or_python(write_scenario):
     assert load_scenario(write_scenario(step_scenario())).loop == "auto"
     with pytest.raises(ConfigError, match="loop.*must be one of auto, python"):
         load_scenario(write_scenario(step_scenario(loop="compiled")))
+
+
+def test_a_hook_added_while_a_compiled_run_goes_takes_it_on_in_python_from_the_next_stretch(write_scenario):
+    from jointctl.compiled.plan import STRETCH_CYCLES
+
+    session = Session(load_scenario(write_scenario(step_scenario(duration_s=5.0))))
+    seen = []
+    original = session.loop.compiler
+
+    def compile_then_add_an_observer(loop):
+        run = original(loop)
+        hand_over = run._hand_over
+
+        def first_stretch_done(*args):  # an edge's thread adds its hook as the first stretch runs
+            hand_over(*args)
+            if not seen:
+                loop.add_observer(seen.append)
+
+        run._hand_over = first_stretch_done
+        return run
+
+    session.loop.compiler = compile_then_add_an_observer
+    session.run()
+    assert session.loop.mode == "python" and "changed" in session.loop.mode_reason
+    assert len(seen) == 5000 - STRETCH_CYCLES and seen[0] == pytest.approx(STRETCH_CYCLES * 0.001)

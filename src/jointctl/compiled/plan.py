@@ -176,6 +176,17 @@ class CompiledRun:
         self.frame_times = np.zeros(len(self.frames))
         self.tracks = [o for o in loop.observers if type(o) is ObjectTrack]
         self.out = np.zeros(4, dtype=np.int64)
+        #: The loop's parts as compiled: an edge that changes them while the run goes (a hook added from its
+        #: thread) ends the compiled run at the end of the stretch, and the loop goes on in Python.
+        self.parts = (loop.inputs, loop.observers, manager.update_calls)
+
+    def _parts_unchanged(self) -> bool:
+        loop = self.loop
+        inputs, observers, calls = self.parts
+        if loop.inputs is inputs and loop.observers is observers and loop.manager.update_calls is calls:
+            return True
+        loop.mode, loop.mode_reason = "python", "the loop's parts changed while it ran compiled: it went on in Python"
+        return False
 
     def run(self, k: int, end: int) -> tuple[int, bool]:
         """Run cycles from ``k`` to ``end`` (exclusive; -1: until stopped) in stretches; returns the next cycle
@@ -185,7 +196,7 @@ class CompiledRun:
         loop, hw, cycle, out = self.loop, self.hw, self.cycle, self.out
         status = cycle.DONE
         try:
-            while k != end and not loop._stop_requested:
+            while k != end and not loop._stop_requested and self._parts_unchanged():
                 n = STRETCH_CYCLES if end < 0 else min(STRETCH_CYCLES, end - k)
                 cycle.run_cycles(
                     k, n, loop.period_s,

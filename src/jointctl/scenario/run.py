@@ -121,6 +121,9 @@ def _report_section(scenario: Scenario, metrics: dict[str, Any], folder: Path, r
     lines = [f"## {scenario.name}", ""]
     if scenario.description:
         lines += [scenario.description, ""]
+    if "loop" in metrics:  # which loop ran it: compiled, or python and why
+        reason = metrics.get("loop_reason")
+        lines += [f"Loop: {metrics['loop']}" + (f" ({reason})" if reason else "") + ".", ""]
     expected = metrics.get("expected", {})
     lines += ["| metric | measured | expected | difference |", "|---|---|---|---|"]
     for key, value in metrics.items():
