@@ -30,14 +30,16 @@ class Run:
     trace: Trace
     error: Exception | None
     capture: FrameCapture | None
+    poses: list | None = None  # run.mcap's samples of the spawned objects (before the record is written)
 
 
-def run_on(path: str | Path, loop: str, out: Path, overrides=(), *, before=None, video_fps=None) -> Run:
+def run_on(path: str | Path, loop: str, out: Path, overrides=(), *, before=None, video_fps=None,
+           mcap=False) -> Run:
     """Run the scenario at ``path`` (or a built-in name) with ``loop`` (python or auto) into ``out``;
     ``before(session)`` runs first (a part of the run, a change of state)."""
     scenario = load_scenario(path, [*overrides, f"loop={loop}"])
     error = capture = None
-    with Session(scenario, out_dir=out) as session:
+    with Session(scenario, out_dir=out, mcap=mcap) as session:
         if video_fps:
             capture = FrameCapture(session.world, video_fps)
             session.loop.add_observer(capture)
@@ -47,7 +49,8 @@ def run_on(path: str | Path, loop: str, out: Path, overrides=(), *, before=None,
             session.run()
         except PhysicsError as exc:
             error = exc
-    return Run(session, load_trace(out / "trace.csv"), error, capture)
+        poses = list(session.mcap.objects.samples) if mcap else None
+    return Run(session, load_trace(out / "trace.csv"), error, capture, poses)
 
 
 def both_paths(path, tmp_path: Path, overrides=(), **kwargs) -> tuple[Run, Run]:
@@ -98,6 +101,13 @@ def assert_same(python: Run, compiled: Run) -> None:
     for name, source in p.sources.items():
         assert (source._hold.k, source._hold.value) == (c.sources[name]._hold.k, c.sources[name]._hold.value) \
             if hasattr(source, "_hold") else True
+    if python.poses is not None:  # run.mcap's samples of the spawned objects' poses
+        a, b = python.poses, compiled.poses
+        assert [t for t, _ in a] == [t for t, _ in b]
+        for (_, poses_a), (_, poses_b) in zip(a, b):
+            assert [spec for spec, *_ in poses_a] == [spec for spec, *_ in poses_b]
+            for (_, *pose_a), (_, *pose_b) in zip(poses_a, poses_b):
+                np.testing.assert_array_equal(np.concatenate(pose_a), np.concatenate(pose_b))
     if python.capture is not None:
         assert [t for _, _, t in python.capture.frames] == [t for _, _, t in compiled.capture.frames]
         for (_, a, _), (_, b, _) in zip(python.capture.frames, compiled.capture.frames):
@@ -111,6 +121,16 @@ def test_a_built_in_scenario_gives_the_same_run_on_both_paths(name, tmp_path):
     python, compiled = both_paths(name, tmp_path)
     assert_same(python, compiled)
     assert len(compiled.trace.time_s) == round(load_scenario(name).duration_s / 0.001)
+
+
+@pytest.mark.slow
+def test_the_dropped_weight_gives_the_same_run_on_both_paths(tmp_path):
+    """one_dof_drop_weight: the weight spawned at its time (in Python, between two stretches), its contact with
+    the disk, the force sensor, and run.mcap's samples of the weight's pose."""
+    python, compiled = both_paths("one_dof_drop_weight", tmp_path, video_fps=15.0, mcap=True)
+    assert_same(python, compiled)
+    assert len(compiled.poses) > 100
+    assert compiled.trace["ft_sensor.force_z"][-1] < -40.0  # the 10 kg weight rests on the disk at 5 m/s²
 
 
 def test_one_dof_sine_stays_in_python_for_its_expression_and_its_sine_source_runs_compiled(tmp_path):

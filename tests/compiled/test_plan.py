@@ -35,20 +35,23 @@ def test_a_run_of_built_in_parts_is_compiled(write_scenario):
     ({"commands": {POSITION: {"type": "expression", "expression": "-0.3"}}},
      f"the command source ExpressionSource of '{POSITION}' has no compiled form"),
     ({"latency_cycles": 1}, "the hardware (ImperfectHardware) has no compiled form"),
-    ({"objects": [{"name": "weight", "shape": "box", "size_m": [0.1, 0.1, 0.1], "mass_kg": 1.0,
-                   "xyz": [0, 0, 2], "spawn_at_s": 0.1}]},
-     "the loop input object_spawner.<locals>.spawn has no compiled form"),
     ({"controller_file": "nac", "start_controllers": ["joint_state_controller", "joint1_velocity_controller",
                                                       "joint1_admittance_controller"], "commands": {}},
      "controller 'joint1_admittance_controller' (AdmittanceController) has no compiled form"),
     ({"controller_file": "velocity", "start_controllers": ["joint_state_controller", "joint1_velocity_controller"],
       "controllers": {"joint1_velocity_controller": {"command_timeout_s": 0.1}}, "commands": {}},
      "controller 'joint1_velocity_controller' (JointVelocityController): its command watchdog has no compiled form"),
-], ids=["asked", "user controller", "gravity feed-forward", "expression", "late commands", "objects", "admittance",
+], ids=["asked", "user controller", "gravity feed-forward", "expression", "late commands", "admittance",
         "watchdog"])
 def test_a_part_without_a_compiled_form_keeps_the_python_loop_and_says_which(changes, reason, write_scenario):
     session = Session(load_scenario(write_scenario(step_scenario(**changes))))
     assert mode_of(session) == ("python", reason)
+
+
+def test_a_trajectory_executor_keeps_the_python_loop():
+    session = Session(load_scenario("one_dof_trajectory"))
+    assert mode_of(session) == ("python", "controller 'joint1_trajectory_controller' (TrajectoryExecutor) has no "
+                                          "compiled form")
 
 
 def test_a_chained_controller_keeps_the_python_loop(write_scenario):

@@ -313,19 +313,3 @@ def test_the_shipped_layout_is_the_layout_and_reads_recorded_topics():
     for topic in (fm.JOINT_STATES, fm.REFERENCES, fm.WRENCHES, fm.ROBOT_DESCRIPTION, fm.OBJECTS, fm.TF, fm.EVENTS):
         assert f'"{topic}' in text, topic
 
-
-def test_passing_over_cycles_moves_the_object_track_countdown_as_that_many_calls():
-    from jointctl.recording.mcap_record import ObjectTrack
-
-    class Empty:
-        spawned = ()
-
-    for every in (1, 2, 3, 33):
-        for start in range(every):
-            for cycles in range(0, 80):
-                called, passed = ObjectTrack(Empty(), every), ObjectTrack(Empty(), every)
-                called._countdown = passed._countdown = start
-                for k in range(cycles):
-                    called(k * 0.001)
-                passed.pass_over(cycles)
-                assert passed._countdown == called._countdown and not passed.samples

@@ -84,15 +84,6 @@ class ObjectTrack:
         self.samples.append((time_s, tuple((spec, *state(spec.name)[:2]) for spec in spawned)))
         self._shown = bool(spawned)
 
-    def pass_over(self, cycles: int) -> None:
-        """As ``cycles`` calls while nothing is spawned nor was shown (a compiled run's cycles): the countdown
-        moves on, nothing is kept."""
-        countdown = self._countdown
-        if cycles <= countdown:
-            self._countdown = countdown - cycles
-        else:  # the call after the countdown restarts it at every - 1, and so on
-            self._countdown = self.every - 1 - (cycles - countdown - 1) % self.every
-
 
 class McapRecorder:
     """Writes ``path`` (``run.mcap``) for a run of ``robot`` on ``hardware`` under ``manager``'s controllers.

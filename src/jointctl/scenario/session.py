@@ -31,6 +31,7 @@ from jointctl.model.loader import description_text, load_robot_model
 from jointctl.model.robot_model import RobotModel
 from jointctl.runtime.clock import SimulatedClock, WallClockPacer
 from jointctl.runtime.loop import ControlLoop
+from jointctl.runtime.spawner import ObjectSpawner
 from jointctl.scenario.plant import payload_link, varied_plant
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.mjcf_builder import WorldSettings
@@ -196,16 +197,10 @@ class Session:
         self.close()
 
 
-def object_spawner(simulation: SimulationDoor, objects):
+def object_spawner(simulation: SimulationDoor, objects) -> ObjectSpawner:
     """A loop input that adds each object through the hardware's simulation door once loop time
     reaches its spawn time."""
-    pending = sorted(objects, key=lambda o: o.spawn_at_s)
-
-    def spawn(time_s: float) -> None:
-        while pending and time_s + 1e-9 >= pending[0].spawn_at_s:
-            simulation.spawn(pending.pop(0))
-
-    return spawn
+    return ObjectSpawner(simulation, objects)
 
 
 def goal_trajectory(goal: dict, source: str, index: int) -> JointTrajectory:
