@@ -22,4 +22,9 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 "$VENV/bin/python" -m pip install -q --upgrade "pip>=23"
 "$VENV/bin/python" -m pip install -q -e ".[test]"
+# The compiled cycle's kernels: numba compiles them once (a few seconds) into its cache folder
+# (~/.cache/jointctl/kernels/, see src/jointctl/jit.py), so that the first run does not wait.
+"$VENV/bin/python" -c 'from jointctl.scenario.session import Session; from jointctl.scenario.spec import load_scenario
+s = Session(load_scenario("one_dof_step")); s.run(0.001)
+print("bootstrap: loop:", s.loop.mode, s.loop.mode_reason or "")'
 echo "bootstrap: ready ($("$VENV/bin/python" -c 'import mujoco, numpy; print("mujoco", mujoco.__version__, "numpy", numpy.__version__)'))"

@@ -15,12 +15,12 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "jointctl"
 #: Shared helpers below every layer (the package root's ``__init__`` holds the version and puts the
 #: environment's packages first: python_path).
-FOUNDATION = ("jointctl", "errors", "validate", "paths", "python_path")
+FOUNDATION = ("jointctl", "errors", "validate", "paths", "python_path", "jit")
 #: Every package of jointctl, bottom to top: each may import only those before it (and the foundation).
 #: wire: pure codecs; model ... runtime: the loop; then the edges, each family its own package (sweep runs
-#: scenarios and may use identification's designs).
+#: scenarios and may use identification's designs; compiled: the loop's cycle of the built-in parts, compiled).
 LAYERS = ("wire", "model", "sim", "hardware", "control", "trajectory", "runtime",
-          "commands", "metrics", "recording", "visuals",
+          "commands", "metrics", "recording", "visuals", "compiled",
           "scenario", "identification", "sweep", "industrial_controller", "clients", "tuning", "ros", "ros2", "cli")
 #: The core: what runs inside the loop; the edges sit on it.
 CORE = ("model", "sim", "hardware", "control", "trajectory", "runtime")

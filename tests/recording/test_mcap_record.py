@@ -312,3 +312,4 @@ def test_the_shipped_layout_is_the_layout_and_reads_recorded_topics():
     text = LAYOUT_FILE.read_text()
     for topic in (fm.JOINT_STATES, fm.REFERENCES, fm.WRENCHES, fm.ROBOT_DESCRIPTION, fm.OBJECTS, fm.TF, fm.EVENTS):
         assert f'"{topic}' in text, topic
+

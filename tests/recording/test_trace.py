@@ -44,7 +44,7 @@ def test_decimation_keeps_one_cycle_in_every(write_scenario, tmp_path):
 
 
 def test_rows_spool_to_disk_in_chunks_and_the_spool_is_removed(write_scenario, tmp_path):
-    scenario = load_scenario(write_scenario(step_scenario(duration_s=0.1)))
+    scenario = load_scenario(write_scenario(step_scenario(duration_s=0.1, loop="python")))
     session = Session(scenario)
     recorder = TraceRecorder(tmp_path / "trace.csv", session.hardware,
                              session.manager.references, chunk_rows=16)
@@ -55,6 +55,24 @@ def test_rows_spool_to_disk_in_chunks_and_the_spool_is_removed(write_scenario, t
     recorder.close()
     assert not any(p.name.startswith(".") for p in tmp_path.iterdir())
     assert len(load_trace(tmp_path / "trace.csv").time_s) == 100
+
+
+def test_a_compiled_run_spools_its_rows_at_the_end_of_each_stretch(write_scenario, tmp_path):
+    scenario = load_scenario(write_scenario(step_scenario(duration_s=0.1)))
+    session = Session(scenario)
+    recorder = TraceRecorder(tmp_path / "trace.csv", session.hardware,
+                             session.manager.references, chunk_rows=16)
+    session.loop.add_observer(recorder)
+    compiler, session.loop.compiler = session.loop.compiler, None
+    session.loop.run(cycles=3)  # in Python: three rows in memory
+    assert session.loop.mode == "python" and len(recorder._rows) == 3
+    session.loop.compiler = compiler
+    session.run(0.097)
+    assert session.loop.mode == "compiled"
+    assert recorder.rows_written == 100 and not recorder._rows  # the stretch's rows follow the three
+    recorder.close()
+    trace = load_trace(tmp_path / "trace.csv")
+    np.testing.assert_allclose(trace.time_s, np.arange(100) * 0.001, rtol=0, atol=1e-12)
 
 
 def test_every_must_be_positive(write_scenario, tmp_path):

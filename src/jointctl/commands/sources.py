@@ -37,6 +37,7 @@ __all__ = [
     "ConstantSource",
     "ExpressionSource",
     "SineSource",
+    "SourceFeed",
     "StepSource",
     "command_source_from_config",
 ]
@@ -273,6 +274,22 @@ class ExpressionSource(CommandSource):
 
     def __repr__(self) -> str:
         return f"ExpressionSource({self.expression.text!r}, rate_hz={self.rate_hz!r})"
+
+
+class SourceFeed:
+    """A loop input handing ``source``'s value at loop time t to ``controller``'s edge door,
+    ``set_reference`` (the run's compiled cycle, :mod:`jointctl.compiled`, knows it by this type)."""
+
+    __slots__ = ("source", "controller", "_sample", "_set_reference")
+
+    def __init__(self, source: CommandSource, controller) -> None:
+        self.source = source
+        self.controller = controller
+        self._sample = source.sample
+        self._set_reference = controller.set_reference
+
+    def __call__(self, time_s: float) -> None:
+        self._set_reference(self._sample(time_s))
 
 
 _KEYS: dict[str, tuple[frozenset[str], frozenset[str]]] = {

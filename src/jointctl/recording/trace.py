@@ -85,6 +85,13 @@ class TraceRecorder:
         if len(rows) >= self.chunk_rows:
             self.flush()
 
+    def add_block(self, block: np.ndarray) -> None:
+        """Add rows made elsewhere (a compiled run's: float64, rows x columns, in order) after the rows so far."""
+        self.flush()
+        if len(block):
+            self._spool.write(np.ascontiguousarray(block, dtype="<f8").tobytes())
+            self.rows_written += len(block)
+
     def flush(self) -> None:
         """Move the rows collected in memory to the spool file."""
         if self._rows:

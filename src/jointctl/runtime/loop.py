@@ -14,6 +14,14 @@ Each cycle ``k`` runs at loop time ``t = k * period_s``:
 
 Inputs and observers are plain callables taking the loop time in seconds. With
 simulated time and the same inputs the loop produces the same trace, bit for bit.
+
+*The compiled path.* A loop given a ``compiler`` (the scenario's session gives
+:func:`jointctl.compiled.plan.compile_loop`) asks it, at the start of each :meth:`ControlLoop.run`, for a compiled
+run of the same cycles: when every part of the cycle has a compiled form, stretches of cycles run in machine code
+with the same numbers and the same events at the same cycles; otherwise the compiler says why not and the loop
+runs in Python. :attr:`ControlLoop.mode` says which (``compiled`` or ``python``) and
+:attr:`ControlLoop.mode_reason` why Python. A compiled run is stopped by :meth:`~ControlLoop.request_stop` at the
+end of a stretch, and a cycle whose commands are not finite is finished, and the run continued, in Python.
 """
 
 from __future__ import annotations
@@ -26,6 +34,9 @@ from jointctl.hardware.interface import HardwareInterface
 from jointctl.runtime.clock import SimulatedClock, WallClockPacer
 
 CycleHook = Callable[[float], None]
+#: ``compiler(loop)``: a compiled run of ``loop`` (``run(k, end) -> (next cycle, half done)``), or the reason
+#: (text) the loop runs in Python.
+Compiler = Callable[["ControlLoop"], object]
 
 
 class ControlLoop:
@@ -53,6 +64,11 @@ class ControlLoop:
         self.observers: tuple[CycleHook, ...] = ()
         self.wall_time_s = 0.0
         self._stop_requested = False
+        #: Offers each run a compiled path (see the module docstring); None: always Python.
+        self.compiler: Compiler | None = None
+        #: The path of the last (or running) :meth:`run`: ``compiled`` or ``python``; and why ``python``.
+        self.mode = "python"
+        self.mode_reason = "no compiled path was offered"
 
     @property
     def time_s(self) -> float:
@@ -101,9 +117,24 @@ class ControlLoop:
         k = start_cycle
         end = start_cycle + cycles if cycles >= 0 else -1
         self._stop_requested = False
+        compiled = self._compiled_run()
         self.clock.start()
         wall_start = time.perf_counter()
         try:
+            if compiled is not None:
+                try:
+                    k, half_done = compiled.run(k, end)
+                finally:
+                    k = self.cycle  # where the compiled stretches stopped (also when a warning raised)
+                if half_done:  # cycle k updated, a command not finite: finished here, the run goes on in Python
+                    t = k * period
+                    check_outputs(t)
+                    write()
+                    for hook in self.observers:
+                        hook(t)
+                    advance(period)
+                    k += 1
+                    self.cycle = k
             while k != end and not self._stop_requested:
                 t = k * period
                 for hook in self.inputs:
@@ -134,3 +165,15 @@ class ControlLoop:
             self.cycle = k
             self.wall_time_s += time.perf_counter() - wall_start
         return k - start_cycle
+
+    def _compiled_run(self):
+        """The compiled run the compiler offers for this run, or None (with :attr:`mode_reason` set)."""
+        if self.compiler is None:  # (mode_reason: whoever left it out may say why)
+            self.mode = "python"
+            return None
+        offer = self.compiler(self)
+        if isinstance(offer, str):
+            self.mode, self.mode_reason = "python", offer
+            return None
+        self.mode, self.mode_reason = "compiled", None
+        return offer

@@ -70,6 +70,9 @@ def run_scenario(
     if analysis is not None:
         metrics.update(analysis(session, load_trace(session.trace_path), out, scenario.analysis))
     metrics["real_time_factor"] = real_time_factor
+    metrics["loop"] = session.loop.mode  # compiled or python, and why python
+    if session.loop.mode_reason:
+        metrics["loop_reason"] = session.loop.mode_reason
     if capture is not None:
         metrics["video"] = {**write_video(capture.frames, out, video, camera), "frames": len(capture.frames),
                             "fps": video.fps}
@@ -118,6 +121,9 @@ def _report_section(scenario: Scenario, metrics: dict[str, Any], folder: Path, r
     lines = [f"## {scenario.name}", ""]
     if scenario.description:
         lines += [scenario.description, ""]
+    if "loop" in metrics:  # which loop ran it: compiled, or python and why
+        reason = metrics.get("loop_reason")
+        lines += [f"Loop: {metrics['loop']}" + (f" ({reason})" if reason else "") + ".", ""]
     expected = metrics.get("expected", {})
     lines += ["| metric | measured | expected | difference |", "|---|---|---|---|"]
     for key, value in metrics.items():

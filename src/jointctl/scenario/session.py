@@ -31,13 +31,14 @@ from jointctl.model.loader import description_text, load_robot_model
 from jointctl.model.robot_model import RobotModel
 from jointctl.runtime.clock import SimulatedClock, WallClockPacer
 from jointctl.runtime.loop import ControlLoop
+from jointctl.runtime.spawner import ObjectSpawner
 from jointctl.scenario.plant import payload_link, varied_plant
 from jointctl.scenario.spec import Scenario
 from jointctl.sim.mjcf_builder import WorldSettings
 from jointctl.hardware.interface import HardwareInterface, SimulationDoor
 from jointctl.sim.world import MujocoWorld
 from jointctl.commands.limits import check_within_limits
-from jointctl.commands.sources import CommandSource, command_source_from_config
+from jointctl.commands.sources import CommandSource, SourceFeed, command_source_from_config
 from jointctl.recording.mcap_record import MCAP_FILE, McapRecorder
 from jointctl.recording.trace import TraceRecorder
 from jointctl.commands.sine_trajectory import coarse_sine
@@ -124,8 +125,14 @@ class Session:
                                   field=f"commands.{name}", value=name)
         clock = WallClockPacer(speed) if realtime else SimulatedClock()
         self.loop = ControlLoop(self.hardware, self.manager, period_s=scenario.loop_period_s, clock=clock)
+        if scenario.loop == "auto":  # the compiled cycle when every part of the run has one
+            from jointctl.compiled.plan import compile_loop
+
+            self.loop.compiler = compile_loop
+        else:
+            self.loop.mode_reason = "the scenario asks for it (loop: python)"
         for name, source in self.sources.items():
-            self.loop.add_input(_feed(source, self.manager.controller(name)))
+            self.loop.add_input(SourceFeed(source, self.manager.controller(name)))
         if scenario.objects:
             self.loop.add_input(object_spawner(self.hardware.simulation, scenario.objects))
         #: Handles of the scenario's trajectory goals, in the order they were sent.
@@ -190,16 +197,10 @@ class Session:
         self.close()
 
 
-def object_spawner(simulation: SimulationDoor, objects):
+def object_spawner(simulation: SimulationDoor, objects) -> ObjectSpawner:
     """A loop input that adds each object through the hardware's simulation door once loop time
     reaches its spawn time."""
-    pending = sorted(objects, key=lambda o: o.spawn_at_s)
-
-    def spawn(time_s: float) -> None:
-        while pending and time_s + 1e-9 >= pending[0].spawn_at_s:
-            simulation.spawn(pending.pop(0))
-
-    return spawn
+    return ObjectSpawner(simulation, objects)
 
 
 def goal_trajectory(goal: dict, source: str, index: int) -> JointTrajectory:
@@ -256,14 +257,3 @@ def _goal_sender(session: Session, goals):
                 session.rejected_goals.append((time_s, exc))
 
     return send
-
-
-def _feed(source: CommandSource, controller):
-    """A loop input that hands ``source``'s value at loop time t to ``controller``."""
-    sample = source.sample
-    set_reference = controller.set_reference
-
-    def feed(time_s: float) -> None:
-        set_reference(sample(time_s))
-
-    return feed

@@ -29,6 +29,7 @@ live here::
       joint1: {damping: 12}         # damping [N·s/m or N·m·s/rad], friction [N or N·m], armature [kg or kg·m²]
     latency_cycles: 2               # commands reach the robot this many control cycles late
     noise: {position: 1.0e-4, velocity: 1.0e-3, seed: 0}   # white noise on each measured position, velocity
+    loop: auto                      # auto: the compiled cycle when every part has one (same numbers); python
 
 ``--set key=value`` overrides any field before validation (``value`` is read
 as YAML: ``--set gravity=-5``, ``--set controllers.joint1_position_controller.pid.p=800``).
@@ -60,7 +61,7 @@ from jointctl.validate import checked_number
 _KEYS = {
     "name", "description", "robot", "controller_file", "controllers", "start_controllers",
     "gravity", "timestep_s", "loop_rate_hz", "floor", "initial_positions", "duration_s",
-    "commands", "record", "analysis", "objects", "goals", "payload_kg", "model", "latency_cycles", "noise",
+    "commands", "record", "analysis", "objects", "goals", "payload_kg", "model", "latency_cycles", "noise", "loop",
 }
 #: Every top-level field a scenario may have (what ``--set`` reaches).
 SCENARIO_FIELDS = frozenset(_KEYS)
@@ -70,6 +71,8 @@ LATENCY = "latency_cycles"
 NOISE_FIELDS = ("position", "velocity", "seed")
 ROBOT_SETTINGS = (PAYLOAD, "model", LATENCY, "noise")
 _GOAL_SOURCES = ("trajectory", "file", "coarse_sine", "path")
+#: The loop paths a scenario may ask for (``loop``): the compiled cycle where it can (auto), or Python always.
+LOOP_MODES = ("auto", "python")
 _DESCRIPTION_SUFFIXES = (".xacro", ".urdf")
 
 
@@ -136,6 +139,8 @@ class Scenario:
     model_changes: dict[str, float] = field(default_factory=dict)
     latency_cycles: int = 0
     noise: SensorNoise = SensorNoise()
+    #: ``auto``: the compiled cycle when every part of the run has a compiled form; ``python``: the Python loop.
+    loop: str = "auto"
 
     @property
     def changes_robot(self) -> bool:
@@ -291,6 +296,9 @@ class _Validator:
         analysis = raw.get("analysis")
         if analysis is not None and not (isinstance(analysis, dict) and isinstance(analysis.get("type"), str)):
             raise self.error("must be a mapping with a 'type'", "analysis", analysis)
+        loop = raw.get("loop", "auto")
+        if loop not in LOOP_MODES:
+            raise self.error(f"must be one of {', '.join(LOOP_MODES)}", "loop", loop)
         name = raw.get("name") or Path(self.source).stem
         return Scenario(
             name=str(name),
@@ -316,6 +324,7 @@ class _Validator:
             model_changes=self.model_changes(),
             latency_cycles=self.latency_cycles(),
             noise=self.noise(),
+            loop=loop,
         )
 
     def model_changes(self) -> dict[str, float]:

@@ -1,0 +1,98 @@
+"""The compiled cycle: :func:`run_cycles` runs a stretch of the loop's cycles in machine code, each as
+:class:`~jointctl.runtime.loop.ControlLoop` runs it in Python, calling the kernels beside the Python they mirror:
+
+1. inputs: each command source's sample fed to its controller's reference (``sources_kernel``,
+   ``joint_controllers_kernel``);
+2. ``read`` (``mujoco_kernel``);
+3. the controllers' updates in the manager's order (``joint_state_kernel``, ``joint_controllers_kernel``);
+4. the check for a non-finite command (the loop's: the sum of the commands is not a number);
+5. ``write``;
+6. observers: the trace row (``trace_kernel``), a video frame (``video_kernel``), the spawned objects' poses
+   (``mcap_record_kernel``);
+7. ``advance``: the physics steps in C, and the warning check.
+
+The stretch stops early at a cycle whose commands are not finite (after its updates: the loop fails the
+controllers in Python and finishes that cycle there) or after a step that raised a warning.
+"""
+
+from __future__ import annotations
+
+from jointctl.commands.sources_kernel import source_sample
+from jointctl.control.joint_controllers_kernel import feed_position, feed_velocity, position_update, velocity_update
+from jointctl.control.joint_state_kernel import joint_state_update
+from jointctl.hardware.mujoco_kernel import mujoco_advance, mujoco_read, mujoco_write
+from jointctl.jit import kernel
+from jointctl.recording.mcap_record_kernel import track_poses
+from jointctl.recording.trace_kernel import trace_due, trace_row
+from jointctl.visuals.video_kernel import frame_due
+
+#: Controller kinds.
+JOINT_STATE, POSITION, VELOCITY = range(3)
+#: How a stretch ended (``out[STATUS]``): every cycle ran; a cycle's commands were not finite (the cycle
+#: ``out[CYCLE]`` is updated, not written); a step raised a warning (the cycle ``out[CYCLE]`` stepped).
+DONE, NOT_FINITE, WARNED = range(3)
+#: ``out``: where the stretch ended, how, and the trace rows, video frames and object poses it kept.
+CYCLE, STATUS, ROWS, FRAMES, POSES = range(5)
+
+
+@kernel
+def run_cycles(k0, n, period_s,
+               model_address, data_address, nstep, qpos, qvel, actuator_force, ctrl, sensordata, warnings,
+               qpos_adr, dof_adr, actuator, reduction, sensors, counters, warnings_seen,
+               position, velocity, effort, wrench, command,
+               feed_parameters, feed_state, feed_controller,
+               kinds, parameters, state, latest, references, reference_positions, reference_velocities,
+               reference_accelerations,
+               trace_on, trace_state, rows, frames_on, frame_state, frames, frame_times,
+               track_on, track_state, poses, pose_times, xpos, xquat, bodies,
+               out):
+    """Cycles ``k0`` to ``k0 + n - 1`` at ``period_s`` [s] (see the module docstring); ``out`` says how it ended."""
+    kept = 0
+    framed = 0
+    posed = 0
+    joints = command.shape[0]
+    for k in range(k0, k0 + n):
+        t = k * period_s
+        for f in range(feed_parameters.shape[0]):
+            value = source_sample(feed_parameters, feed_state, f, t)
+            c = feed_controller[f]
+            if kinds[c] == POSITION:
+                feed_position(parameters, state, c, value, reference_positions, reference_velocities,
+                              reference_accelerations)
+            else:
+                feed_velocity(parameters, c, value, reference_velocities)
+        mujoco_read(qpos, qvel, actuator_force, sensordata, qpos_adr, dof_adr, actuator, reduction, sensors,
+                    position, velocity, effort, wrench)
+        for c in range(kinds.shape[0]):
+            kind = kinds[c]
+            if kind == POSITION:
+                position_update(parameters, state, c, reference_positions, reference_velocities, references,
+                                position, velocity, command, period_s)
+            elif kind == VELOCITY:
+                velocity_update(parameters, state, c, reference_velocities, references, velocity, command,
+                                period_s)
+            else:
+                joint_state_update(parameters, state, c, latest, t, position, velocity, effort)
+        total = 0.0
+        for j in range(joints):
+            total += command[j]
+        if total - total != 0.0:  # NaN: a non-finite command somewhere
+            out[CYCLE], out[STATUS], out[ROWS], out[FRAMES], out[POSES] = k, NOT_FINITE, kept, framed, posed
+            return
+        mujoco_write(ctrl, actuator, reduction, command)
+        if trace_on and trace_due(trace_state):
+            trace_row(rows, kept, t, references, position, velocity, effort, wrench)
+            kept += 1
+        if frames_on and frame_due(frame_state, t):
+            for q in range(qpos.shape[0]):
+                frames[framed, q] = qpos[q]
+            frame_times[framed] = t
+            framed += 1
+        if track_on and trace_due(track_state) and bodies.shape[0] > 0:
+            track_poses(poses, posed, xpos, xquat, bodies)
+            pose_times[posed] = t
+            posed += 1
+        if mujoco_advance(model_address, data_address, nstep, warnings, counters, warnings_seen):
+            out[CYCLE], out[STATUS], out[ROWS], out[FRAMES], out[POSES] = k, WARNED, kept, framed, posed
+            return
+    out[CYCLE], out[STATUS], out[ROWS], out[FRAMES], out[POSES] = k0 + n, DONE, kept, framed, posed

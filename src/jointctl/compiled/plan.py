@@ -1,0 +1,303 @@
+"""Which loops run compiled, and the compiled run itself.
+
+:func:`compile_loop` is a :class:`~jointctl.runtime.loop.ControlLoop`'s ``compiler``: given the loop about to
+run, it returns a :class:`CompiledRun` when every part of the cycle has a compiled form, else the reason it
+stays in Python (the first part without one). Parts with a compiled form:
+
+- the hardware: :class:`~jointctl.hardware.mujoco_hardware.MujocoHardware` (not paced to the wall clock);
+- controllers: effort ``JointPositionController`` (without the model feed-forward, not chained),
+  ``JointVelocityController`` (without a command watchdog, not chained), ``JointStateController`` (without
+  subscribers);
+- inputs: a :class:`~jointctl.commands.sources.SourceFeed` of a constant, step or sine source into one of those;
+  the scenario's :class:`~jointctl.runtime.spawner.ObjectSpawner` (run in Python at its cycles, between stretches);
+- observers: the :class:`~jointctl.recording.trace.TraceRecorder`, a :class:`~jointctl.visuals.video.FrameCapture`,
+  ``run.mcap``'s :class:`~jointctl.recording.mcap_record.ObjectTrack`.
+
+Everything else (a user's controller, the tuning page, ROS, a trajectory executor, admittance control, goals,
+noisy or late hardware) keeps the Python loop. A compiled run takes the Python objects' state
+as it is at the start of ``run`` and puts it back at its end, so runs may alternate between the two paths.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jointctl.commands.sources import ConstantSource, SineSource, SourceFeed, StepSource
+from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
+from jointctl.control.joint_state_controller import JointStateController
+from jointctl.hardware.mujoco_hardware import MujocoHardware
+from jointctl.recording.mcap_record import ObjectTrack
+from jointctl.recording.trace import TraceRecorder
+from jointctl.runtime.spawner import ObjectSpawner
+from jointctl.visuals.video import FrameCapture
+
+#: Cycles per compiled stretch: between two stretches the loop can be stopped, and rows reach the trace.
+STRETCH_CYCLES = 2000
+
+_CONTROLLERS = (JointPositionController, JointVelocityController, JointStateController)
+_SOURCES = (ConstantSource, StepSource, SineSource)
+
+
+def _describe(hook) -> str:
+    owner = getattr(hook, "__self__", None)
+    if owner is not None:
+        return f"{type(owner).__name__}.{getattr(hook, '__name__', 'call')}"
+    return getattr(hook, "__qualname__", None) or type(hook).__name__
+
+
+def controller_reason(controller) -> str | None:
+    """Why ``controller`` has no compiled form (None when it has one)."""
+    kind = type(controller)
+    if kind not in _CONTROLLERS:
+        name = getattr(controller, "name", None)
+        if name is None:  # an update of the manager's own (the model feed-forward)
+            return f"the update {kind.__name__}.update has no compiled form"
+        return f"controller {name!r} ({kind.__name__}) has no compiled form"
+    what = f"controller {controller.name!r} ({kind.__name__})"
+    if controller.upstream is not None:
+        return f"{what} is chained to {controller.upstream!r}"
+    if kind is JointPositionController and set(controller.feedforward_terms) - {"damping"}:
+        return f"{what}: its model feed-forward has no compiled form"
+    if kind is JointVelocityController and controller.command_timeout_s is not None:
+        return f"{what}: its command watchdog has no compiled form"
+    if kind is JointStateController and controller._subscribers:
+        return f"{what} has subscribers"
+    return None
+
+
+def python_reason(loop) -> str | None:
+    """Why ``loop`` runs in Python (None when every part of its cycle has a compiled form)."""
+    hw = loop.hardware
+    if type(hw) is not MujocoHardware:
+        return f"the hardware ({type(hw).__name__}) has no compiled form"
+    if loop.clock.realtime:
+        return "the loop is paced to the wall clock"
+    if hw.command_buffers != (hw._effort_cmd,):
+        return "the hardware has command interfaces other than effort"
+    running = []
+    for call in loop.manager.update_calls:
+        owner = getattr(call, "__self__", None)
+        if owner is None or getattr(call, "__func__", None) is not type(owner).update:
+            return f"the update {_describe(call)} has no compiled form"
+        reason = controller_reason(owner)
+        if reason is not None:
+            return reason
+        running.append(owner)
+    for hook in loop.inputs:
+        if type(hook) is ObjectSpawner and hook.simulation is hw.simulation:
+            continue
+        if type(hook) is not SourceFeed:
+            return f"the loop input {_describe(hook)} has no compiled form"
+        if type(hook.source) not in _SOURCES:
+            return f"the command source {type(hook.source).__name__} of {hook.controller.name!r} has no compiled form"
+        if hook.controller not in running or type(hook.controller) is JointStateController:
+            return f"the command source feeds {hook.controller.name!r}, which is not running"
+    kinds = [type(hook) for hook in loop.observers]
+    for once in (TraceRecorder, FrameCapture, ObjectTrack):
+        if kinds.count(once) > 1:
+            return f"the loop has more than one {once.__name__}"
+    for hook in loop.observers:
+        kind = type(hook)
+        if kind is TraceRecorder and hook.hardware is hw and hook._references is loop.manager.references:
+            continue
+        if kind is FrameCapture and hook.world is hw.world:
+            continue
+        if kind is ObjectTrack and hook.simulation is hw.simulation and (hook.simulation.spawned or not hook._shown):
+            continue
+        return f"the loop observer {_describe(hook)} has no compiled form"
+    return None
+
+
+def compile_loop(loop):
+    """A :class:`CompiledRun` of ``loop``, or the reason (text) it runs in Python."""
+    reason = python_reason(loop)
+    if reason is not None:
+        return reason
+    try:
+        from jointctl.compiled import cycle  # noqa: F401  (numba and MuJoCo's library)
+    except (ImportError, OSError) as exc:  # the Python loop still runs
+        return f"the compiled kernels cannot load ({exc})"
+    return CompiledRun(loop)
+
+
+class CompiledRun:
+    """One call of ``ControlLoop.run`` on the compiled path: the loop's parts as arrays, run in stretches.
+
+    The arrays are made from the Python objects (:meth:`pack`) and put back (:meth:`unpack`) at the end of the
+    run, and around each object spawned: the spawner runs in Python at its cycle's start (the world is rebuilt),
+    then the parts are packed again from the rebuilt world."""
+
+    def __init__(self, loop) -> None:
+        from jointctl.compiled import cycle
+
+        self.loop = loop
+        self.cycle = cycle
+        self.out = np.zeros(5, dtype=np.int64)
+        #: The loop's parts as compiled: an edge that changes them while the run goes (a hook added from its
+        #: thread) ends the compiled run at the end of the stretch, and the loop goes on in Python.
+        self.parts = (loop.inputs, loop.observers, loop.manager.update_calls)
+        self.spawners = [hook for hook in loop.inputs if type(hook) is ObjectSpawner]
+        self.pack()
+
+    def pack(self) -> None:
+        """Make the arrays from the Python objects as they are now."""
+        from jointctl.commands.sources_kernel import PARAMETERS as SOURCE_PARAMETERS
+        from jointctl.commands.sources_kernel import STATE as SOURCE_STATE
+        from jointctl.commands.sources_kernel import pack_source
+        from jointctl.control.joint_controllers_kernel import PARAMETERS, STATE, pack_position, pack_velocity
+        from jointctl.control.joint_state_kernel import pack_joint_state
+        from jointctl.hardware.mujoco_kernel import MujocoArrays
+        from jointctl.recording.mcap_record_kernel import pack_track
+        from jointctl.recording.trace_kernel import pack_trace
+        from jointctl.visuals.video_kernel import pack_frames
+
+        loop, cycle = self.loop, self.cycle
+        manager, hw = loop.manager, loop.hardware
+        self.hw = MujocoArrays(hw, loop.period_s)
+        joints = len(hw.joint_names)
+        self.controllers = [call.__self__ for call in manager.update_calls]
+        n = len(self.controllers)
+        self.kinds = np.zeros(n, dtype=np.int64)
+        self.parameters = np.zeros((n, PARAMETERS))
+        self.state = np.zeros((n, STATE))
+        self.latest = np.zeros((n, 3, joints))
+        for k, c in enumerate(self.controllers):
+            if type(c) is JointPositionController:
+                kind, (params, state) = cycle.POSITION, pack_position(c)
+            elif type(c) is JointVelocityController:
+                kind, (params, state) = cycle.VELOCITY, pack_velocity(c)
+            else:
+                kind, (params, state) = cycle.JOINT_STATE, pack_joint_state(c)
+            self.kinds[k] = kind
+            self.parameters[k, :len(params)] = params
+            self.state[k, :len(state)] = state
+        context = manager.context
+        self.references = np.array(manager.references, dtype=float)
+        self.reference_lists = (context.reference_positions, context.reference_velocities,
+                                context.reference_accelerations)
+        self.reference_arrays = tuple(np.array(r, dtype=float) for r in self.reference_lists)
+        feeds = [hook for hook in loop.inputs if type(hook) is SourceFeed]
+        self.sources = [f.source for f in feeds]
+        self.feed_parameters = np.zeros((len(feeds), SOURCE_PARAMETERS))
+        self.feed_state = np.zeros((len(feeds), SOURCE_STATE))
+        for f, source in enumerate(self.sources):
+            self.feed_parameters[f], self.feed_state[f] = pack_source(source)
+        self.feed_controller = np.array([self.controllers.index(f.controller) for f in feeds], dtype=np.int64)
+        self.recorder = next((o for o in loop.observers if type(o) is TraceRecorder), None)
+        self.trace_state = np.array(pack_trace(self.recorder) if self.recorder else [0.0, 1.0])
+        width = len(self.recorder.columns) if self.recorder else 1
+        self.rows = np.zeros((STRETCH_CYCLES if self.recorder else 1, width))
+        self.capture = next((o for o in loop.observers if type(o) is FrameCapture), None)
+        self.frame_state = np.array(pack_frames(self.capture) if self.capture else [0.0, 1.0])
+        self.frames = np.zeros((STRETCH_CYCLES if self.capture else 1, len(self.hw.qpos)))
+        self.frame_times = np.zeros(len(self.frames))
+        self.track = next((o for o in loop.observers if type(o) is ObjectTrack), None)
+        self.track_state = np.array(pack_track(self.track) if self.track else [0.0, 1.0])
+        world = hw.world
+        self.specs = tuple(self.track.simulation.spawned) if self.track else ()
+        self.bodies = np.array([world.model.body(spec.name).id for spec in self.specs], dtype=np.int64)
+        samples = STRETCH_CYCLES if self.specs else 1
+        self.poses = np.zeros((samples, len(self.specs), 7))
+        self.pose_times = np.zeros(samples)
+        self.xpos, self.xquat = world.data.xpos, world.data.xquat
+
+    def _parts_unchanged(self) -> bool:
+        loop = self.loop
+        inputs, observers, calls = self.parts
+        if loop.inputs is inputs and loop.observers is observers and loop.manager.update_calls is calls:
+            return True
+        loop.mode, loop.mode_reason = "python", "the loop's parts changed while it ran compiled: it went on in Python"
+        return False
+
+    def _next_spawn(self, k: int) -> int | None:
+        cycles = [c for c in (s.next_cycle(k, self.loop.period_s) for s in self.spawners) if c is not None]
+        return min(cycles) if cycles else None
+
+    def _spawn(self, k: int) -> None:
+        """Cycle ``k``'s spawners, in Python, with every part's state in its object; then pack again."""
+        self.unpack()
+        self.loop.cycle = k  # (listeners of the rebuild read loop time)
+        t = k * self.loop.period_s
+        for spawner in self.spawners:
+            spawner(t)
+        self.pack()
+
+    def run(self, k: int, end: int) -> tuple[int, bool]:
+        """Run cycles from ``k`` to ``end`` (exclusive; -1: until stopped) in stretches; returns the next cycle
+        and whether that cycle is half done (updated, its commands not finite: the loop finishes it in Python
+        and goes on there). The loop's ``cycle`` follows each stretch; a warning raises PhysicsError with
+        ``cycle`` at the cycle whose step raised it, as in Python."""
+        loop, cycle, out = self.loop, self.cycle, self.out
+        status = cycle.DONE
+        try:
+            while k != end and not loop._stop_requested and self._parts_unchanged():
+                spawn = self._next_spawn(k)
+                if spawn == k:
+                    self._spawn(k)
+                    spawn = self._next_spawn(k + 1)
+                n = STRETCH_CYCLES if end < 0 else min(STRETCH_CYCLES, end - k)
+                if spawn is not None:
+                    n = min(n, spawn - k)
+                hw = self.hw
+                cycle.run_cycles(
+                    k, n, loop.period_s,
+                    hw.model_address, hw.data_address, hw.nstep, hw.qpos, hw.qvel, hw.actuator_force, hw.ctrl,
+                    hw.sensordata, hw.warnings, hw.qpos_adr, hw.dof_adr, hw.actuator, hw.reduction, hw.sensors,
+                    hw.counters, hw.warnings_seen, hw.position, hw.velocity, hw.effort, hw.wrench, hw.command,
+                    self.feed_parameters, self.feed_state, self.feed_controller,
+                    self.kinds, self.parameters, self.state, self.latest, self.references, *self.reference_arrays,
+                    self.recorder is not None, self.trace_state, self.rows,
+                    self.capture is not None, self.frame_state, self.frames, self.frame_times,
+                    self.track is not None, self.track_state, self.poses, self.pose_times, self.xpos, self.xquat,
+                    self.bodies, out)
+                stopped_at, status = int(out[cycle.CYCLE]), int(out[cycle.STATUS])
+                self._hand_over(int(out[cycle.ROWS]), int(out[cycle.FRAMES]), int(out[cycle.POSES]))
+                k = stopped_at
+                loop.cycle = k
+                if status != cycle.DONE:
+                    break
+        finally:
+            self.unpack()
+        if status == cycle.WARNED:
+            loop.hardware._check_warnings()  # raises the warning, as the Python advance does
+        return k, status == cycle.NOT_FINITE
+
+    def _hand_over(self, rows: int, frames: int, poses: int) -> None:
+        """Give the observers what a stretch kept: trace rows, video frames, object poses."""
+        if self.recorder is not None:
+            self.recorder.add_block(self.rows[:rows])
+        if self.capture is not None:
+            from jointctl.visuals.video_kernel import unpack_frames
+
+            unpack_frames(self.capture, self.frame_state, self.frames[:frames], self.frame_times[:frames],
+                          self.hw.hardware.world.model)
+        if poses:
+            from jointctl.recording.mcap_record_kernel import unpack_track
+
+            unpack_track(self.track, self.track_state, self.specs, self.poses[:poses], self.pose_times[:poses])
+
+    def unpack(self) -> None:
+        """Put every part's state back into its Python object."""
+        from jointctl.commands.sources_kernel import unpack_source
+        from jointctl.control.joint_controllers_kernel import unpack_position, unpack_velocity
+        from jointctl.control.joint_state_kernel import unpack_joint_state
+        from jointctl.recording.trace_kernel import unpack_trace
+
+        self.hw.unpack()
+        names = self.hw.hardware.joint_names
+        for c, kind, state, latest in zip(self.controllers, self.kinds, self.state, self.latest):
+            if kind == self.cycle.POSITION:
+                unpack_position(c, state)
+            elif kind == self.cycle.VELOCITY:
+                unpack_velocity(c, state)
+            else:
+                unpack_joint_state(c, state, latest, names)
+        self.loop.manager.references[:] = self.references.tolist()
+        for target, values in zip(self.reference_lists, self.reference_arrays):
+            target[:] = values.tolist()
+        for source, state in zip(self.sources, self.feed_state):
+            unpack_source(source, state)
+        if self.recorder is not None:
+            unpack_trace(self.recorder, self.trace_state)
+        if self.track is not None:
+            self.track._countdown = int(self.track_state[0])

@@ -1,0 +1,253 @@
+"""The compiled cycle gives the Python loop's numbers: every built-in scenario it covers, and variants of
+each part's law, run on both paths with the same trace (each column within 1e-9 of its range: the kernels do
+the same operations in the same order, so the difference is rounding at most), the same events at the same
+cycles (controller failures, physics warnings) and the same state left in the Python objects."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
+from jointctl.control.joint_state_controller import JointStateController
+from jointctl.errors import PhysicsError
+from jointctl.recording.trace import Trace, load_trace
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import load_scenario
+from jointctl.visuals.video import FrameCapture
+from tests.conftest import step_scenario
+
+#: Each column of the two traces agrees within this fraction of its range (the issue's bound).
+RELATIVE = 1e-9
+
+
+@dataclass
+class Run:
+    session: Session
+    trace: Trace
+    error: Exception | None
+    capture: FrameCapture | None
+    poses: list | None = None  # run.mcap's samples of the spawned objects (before the record is written)
+
+
+def run_on(path: str | Path, loop: str, out: Path, overrides=(), *, before=None, video_fps=None,
+           mcap=False) -> Run:
+    """Run the scenario at ``path`` (or a built-in name) with ``loop`` (python or auto) into ``out``;
+    ``before(session)`` runs first (a part of the run, a change of state)."""
+    scenario = load_scenario(path, [*overrides, f"loop={loop}"])
+    error = capture = None
+    with Session(scenario, out_dir=out, mcap=mcap) as session:
+        if video_fps:
+            capture = FrameCapture(session.world, video_fps)
+            session.loop.add_observer(capture)
+        try:
+            if before is not None:
+                before(session)
+            session.run()
+        except PhysicsError as exc:
+            error = exc
+        poses = list(session.mcap.objects.samples) if mcap else None
+    return Run(session, load_trace(out / "trace.csv"), error, capture, poses)
+
+
+def both_paths(path, tmp_path: Path, overrides=(), **kwargs) -> tuple[Run, Run]:
+    python = run_on(path, "python", tmp_path / "python", overrides, **kwargs)
+    compiled = run_on(path, "auto", tmp_path / "compiled", overrides, **kwargs)
+    assert python.session.loop.mode == "python"
+    assert compiled.session.loop.mode == "compiled", compiled.session.loop.mode_reason
+    return python, compiled
+
+
+def assert_same_columns(python: Trace, compiled: Trace) -> None:
+    assert list(python.columns) == list(compiled.columns)
+    for name, a in python.columns.items():
+        b = compiled[name]
+        assert a.shape == b.shape, name
+        assert np.array_equal(np.isnan(a), np.isnan(b)), name
+        finite = ~np.isnan(a)
+        if finite.any():
+            span = np.ptp(a[finite]) or max(1.0, np.abs(a[finite]).max())
+            assert np.abs(a[finite] - b[finite]).max() <= RELATIVE * span, name
+
+
+def controller_state(c) -> tuple:
+    if isinstance(c, JointStateController):
+        return c.published, c.latest
+    state = (c.pid.i_state, c.clamped_cycles, c.clamped_furthest, c._last_error, c._last_valid, c.reference)
+    if isinstance(c, JointPositionController):
+        state += (c._last_rate, c._edge_velocity, c.reference_input)
+    return state
+
+
+def assert_same(python: Run, compiled: Run) -> None:
+    """The same trace, events at the same cycles and the same state left behind."""
+    assert_same_columns(python.trace, compiled.trace)
+    p, c = python.session, compiled.session
+    assert p.loop.cycle == c.loop.cycle
+    assert [(f.controller, f.time_s, f.reason) for f in p.manager.failures] == \
+        [(f.controller, f.time_s, f.reason) for f in c.manager.failures]
+    assert str(python.error) == str(compiled.error)
+    assert [x.name for x in p.manager.active] == [x.name for x in c.manager.active]
+    for a, b in zip(p.manager.loaded(), c.manager.loaded()):
+        assert controller_state(a) == controller_state(b), a.name
+    assert p.manager.references == c.manager.references
+    assert p.hardware.position == c.hardware.position and p.hardware.effort == c.hardware.effort
+    assert p.hardware.wrenches == c.hardware.wrenches
+    assert p.hardware._until_warning_check == c.hardware._until_warning_check
+    np.testing.assert_array_equal(p.world.data.qpos, c.world.data.qpos)
+    for name, source in p.sources.items():
+        assert (source._hold.k, source._hold.value) == (c.sources[name]._hold.k, c.sources[name]._hold.value) \
+            if hasattr(source, "_hold") else True
+    if python.poses is not None:  # run.mcap's samples of the spawned objects' poses
+        a, b = python.poses, compiled.poses
+        assert [t for t, _ in a] == [t for t, _ in b]
+        for (_, poses_a), (_, poses_b) in zip(a, b):
+            assert [spec for spec, *_ in poses_a] == [spec for spec, *_ in poses_b]
+            for (_, *pose_a), (_, *pose_b) in zip(poses_a, poses_b):
+                np.testing.assert_array_equal(np.concatenate(pose_a), np.concatenate(pose_b))
+    if python.capture is not None:
+        assert [t for _, _, t in python.capture.frames] == [t for _, _, t in compiled.capture.frames]
+        for (_, a, _), (_, b, _) in zip(python.capture.frames, compiled.capture.frames):
+            np.testing.assert_array_equal(a, b)
+
+
+# -- the built-in scenarios whose parts all have a compiled form ----------------------------------------------
+
+@pytest.mark.parametrize("name", ["one_dof_step", "one_dof_velocity_sine"])
+def test_a_built_in_scenario_gives_the_same_run_on_both_paths(name, tmp_path):
+    python, compiled = both_paths(name, tmp_path)
+    assert_same(python, compiled)
+    assert len(compiled.trace.time_s) == round(load_scenario(name).duration_s / 0.001)
+
+
+@pytest.mark.slow
+def test_the_dropped_weight_gives_the_same_run_on_both_paths(tmp_path):
+    """one_dof_drop_weight: the weight spawned at its time (in Python, between two stretches), its contact with
+    the disk, the force sensor, and run.mcap's samples of the weight's pose."""
+    python, compiled = both_paths("one_dof_drop_weight", tmp_path, video_fps=15.0, mcap=True)
+    assert_same(python, compiled)
+    assert len(compiled.poses) > 100
+    assert compiled.trace["ft_sensor.force_z"][-1] < -40.0  # the 10 kg weight rests on the disk at 5 m/s²
+
+
+def test_one_dof_sine_stays_in_python_for_its_expression_and_its_sine_source_runs_compiled(tmp_path):
+    session = Session(load_scenario("one_dof_sine"))
+    session.run(0.001)
+    assert session.loop.mode == "python" and "ExpressionSource" in session.loop.mode_reason
+    sine = "commands.joint1_position_controller={type: sine, amplitude: 0.1, frequency_hz: 3.183098861837907, " \
+           "offset: -0.5, rate_hz: 100}"
+    assert_same(*both_paths("one_dof_sine", tmp_path, [sine]))
+
+
+# -- each law's variants ----------------------------------------------------------------------------------------
+
+POSITION = "controllers.joint1_position_controller"
+
+
+@pytest.mark.parametrize("overrides", [
+    [f"{POSITION}.pid={{p: 400.0, i: 0.0, d: 20.0}}"],  # derivative on the error's difference: the kick
+    [f"{POSITION}.pid={{p: 400.0, i: 0.0, d: 20.0}}", f"{POSITION}.derivative=measurement"],
+    [f"{POSITION}.pid={{p: 300.0, i: 2000.0, d: 5.0, i_clamp: 3.0}}"],  # the integral saturates at its clamp
+    [f"{POSITION}.pid={{p: 300.0, i: 2000.0, d: 5.0, i_clamp: 3.0, antiwindup: true}}"],
+    [f"{POSITION}.pid={{p: 400.0, i: 0.0, d: 20.0}}", f"{POSITION}.feedforward={{damping: true}}",
+     "commands.joint1_position_controller={type: step, from: -0.2, to: -0.5, at: 0.1, ramp_s: 0.05}"],
+    ["commands.joint1_position_controller={type: constant, value: -0.35}", "record={every: 7}"],
+    ["commands.joint1_position_controller={type: sine, amplitude: 0.2, frequency_hz: 2.0, offset: -0.5, "
+     "rate_hz: 250}", "gravity=-3.0"],
+], ids=["d on error", "d on measurement", "i clamp", "antiwindup", "damping feed-forward, ramp", "every 7",
+        "sine"])
+def test_the_position_controller_and_the_sources_give_the_same_run(overrides, write_scenario, tmp_path):
+    path = write_scenario(step_scenario(duration_s=0.6))
+    assert_same(*both_paths(path, tmp_path, overrides))
+
+
+def test_a_continuous_joint_wraps_its_error_alike(tmp_path):
+    overrides = ["commands={joint1_position_controller: {type: step, from: -3.0, to: 3.0, at: 0.05}}",
+                 "duration_s=2.0", "initial_positions={joint1: -3.0}", "gravity=0.0"]
+    python, compiled = both_paths(load_scenario("minimal_robot_trajectory").source, tmp_path,
+                                  [*overrides, "goals=[]", "start_controllers=[joint_state_controller, "
+                                                           "joint1_position_controller]"])
+    assert_same(python, compiled)
+    # 3 rad from -3 rad is 0.28 rad backwards: p·(-0.28) N·m, not p·6 N·m forwards
+    assert (compiled.trace.joint("joint1", "effort")[100:] < 0).all()
+
+
+def test_seven_velocity_loops_with_a_force_sensor_and_a_video_give_the_same_run(write_scenario, tmp_path):
+    names = [f"joint{k}_velocity_controller" for k in range(7)]
+    scenario = {
+        "name": "arm_velocities", "robot": "arm7dof", "controller_file": "velocity", "gravity": 0.0,
+        "start_controllers": ["joint_state_controller", *names], "duration_s": 0.5, "record": {"every": 3},
+        "initial_positions": {"joint1": 1.0, "joint3": -2.0, "joint5": 1.0},
+        "commands": {**{n: {"type": "sine", "amplitude": 0.03 / (1 + k) if k % 2 else 0.15, "frequency_hz": 1.0 + k,
+                            "rate_hz": 500, "derivative": k % 2 == 1} for k, n in enumerate(names[:6])},
+                     names[6]: {"type": "step", "from": 0.0, "to": 0.15, "at": 0.2}},  # within ±0.2 rad/s
+    }
+    python, compiled = both_paths(write_scenario(scenario), tmp_path, video_fps=30.0)
+    assert_same(python, compiled)
+    assert np.abs(compiled.trace["ft_sensor.torque_z"]).max() > 0  # the plate's inertia loads the sensor
+    assert len(compiled.capture.frames) == 15
+
+
+# -- events at the same cycles ---------------------------------------------------------------------------------
+
+def test_a_non_finite_command_fails_its_controller_at_the_same_cycle_and_the_run_goes_on(write_scenario, tmp_path):
+    """p·e overflows to +inf while d·ė overflows to -inf on the second cycle: inf - inf is not a number."""
+    scenario = {"name": "overflow", "robot": "one_dof", "controller_file": "velocity", "gravity": 0.0,
+                "start_controllers": ["joint_state_controller", "joint1_velocity_controller"],
+                "controllers": {"joint1_velocity_controller": {"pid": {"p": 1e308, "i": 0.0, "d": 1e308}}},
+                "initial_positions": {"joint1": -0.5}, "duration_s": 0.05,
+                "commands": {"joint1_velocity_controller": {"type": "constant", "value": 5.0}}}
+    python, compiled = both_paths(write_scenario(scenario), tmp_path)
+    assert_same(python, compiled)
+    failure, = compiled.session.manager.failures
+    assert failure.time_s == pytest.approx(0.001) and "non-finite command nan" in failure.reason
+    assert compiled.session.loop.cycle == 50
+
+
+def test_a_physics_warning_ends_the_run_at_the_same_cycle(write_scenario, tmp_path):
+    def diverge(session):
+        session.run(0.01)
+        session.world.data.qvel[0] = 1e300  # what a diverging loop ends in
+
+    python, compiled = both_paths(write_scenario(step_scenario(duration_s=0.2)), tmp_path, before=diverge)
+    assert isinstance(compiled.error, PhysicsError) and compiled.error.field == "mjWARN_BADQVEL"
+    assert_same(python, compiled)
+    assert compiled.session.loop.cycle == 99  # the counts are read after every 100th step: cycle 99 raised
+
+
+def test_runs_may_alternate_between_the_paths_at_cycle_boundaries(write_scenario, tmp_path):
+    """Python's state goes into the compiled run and comes back out: a run split into parts on alternating paths
+    is the run on one path."""
+    path = write_scenario(step_scenario(duration_s=0.6, controllers={
+        "joint1_position_controller": {"pid": {"p": 300.0, "i": 500.0, "d": 10.0, "i_clamp": 5.0}}}))
+
+    def alternate(session):
+        compiler = session.loop.compiler
+        for k, part in enumerate((0.05, 0.1333, 0.001, 0.2)):
+            session.loop.compiler = compiler if k % 2 else None
+            session.run(part)
+
+    python = run_on(path, "python", tmp_path / "python", ["duration_s=0.6"])
+    mixed = run_on(path, "auto", tmp_path / "mixed", ["duration_s=0.2157"], before=alternate)
+    assert mixed.session.loop.mode == "compiled"
+    assert_same(python, mixed)
+
+
+def test_a_stop_request_ends_a_compiled_run_after_its_stretch(write_scenario):
+    from jointctl.compiled.plan import STRETCH_CYCLES
+
+    session = Session(load_scenario(write_scenario(step_scenario())))
+    original = session.loop.compiler
+
+    def compile_and_ask_to_stop(loop):
+        run = original(loop)
+        loop.request_stop()  # before the first stretch: the run ends at once
+        return run
+
+    session.loop.compiler = compile_and_ask_to_stop
+    assert session.loop.run() == 0 and session.loop.mode == "compiled"
+    session.loop.compiler = original
+    assert session.loop.run(cycles=STRETCH_CYCLES + 7) == STRETCH_CYCLES + 7

@@ -1,0 +1,132 @@
+"""Which runs take the compiled cycle: those whose every part has a compiled form; every other run keeps the
+Python loop and says why (the first part without one), in the loop and in the run's metrics."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from jointctl.compiled.plan import compile_loop
+from jointctl.scenario.run import run_scenario
+from jointctl.scenario.session import Session
+from jointctl.scenario.spec import load_scenario
+from tests.conftest import step_scenario
+from tests.faulty_controllers import FAULTY_TYPE
+
+POSITION = "joint1_position_controller"
+
+
+def mode_of(session: Session) -> tuple[str, str | None]:
+    session.run(0.002)
+    return session.loop.mode, session.loop.mode_reason
+
+
+def test_a_run_of_built_in_parts_is_compiled(write_scenario):
+    assert mode_of(Session(load_scenario(write_scenario(step_scenario())))) == ("compiled", None)
+
+
+@pytest.mark.parametrize(("changes", "reason"), [
+    ({"loop": "python"}, "the scenario asks for it (loop: python)"),
+    ({"controllers": {POSITION: {"type": FAULTY_TYPE, "fail_above": 10.0}}},
+     f"controller '{POSITION}' (FaultyPositionController) has no compiled form"),
+    ({"controllers": {POSITION: {"feedforward": {"gravity": True}}}},
+     "the update ModelFeedforward.update has no compiled form"),
+    ({"commands": {POSITION: {"type": "expression", "expression": "-0.3"}}},
+     f"the command source ExpressionSource of '{POSITION}' has no compiled form"),
+    ({"latency_cycles": 1}, "the hardware (ImperfectHardware) has no compiled form"),
+    ({"controller_file": "nac", "start_controllers": ["joint_state_controller", "joint1_velocity_controller",
+                                                      "joint1_admittance_controller"], "commands": {}},
+     "controller 'joint1_admittance_controller' (AdmittanceController) has no compiled form"),
+    ({"controller_file": "velocity", "start_controllers": ["joint_state_controller", "joint1_velocity_controller"],
+      "controllers": {"joint1_velocity_controller": {"command_timeout_s": 0.1}}, "commands": {}},
+     "controller 'joint1_velocity_controller' (JointVelocityController): its command watchdog has no compiled form"),
+], ids=["asked", "user controller", "gravity feed-forward", "expression", "late commands", "admittance",
+        "watchdog"])
+def test_a_part_without_a_compiled_form_keeps_the_python_loop_and_says_which(changes, reason, write_scenario):
+    session = Session(load_scenario(write_scenario(step_scenario(**changes))))
+    assert mode_of(session) == ("python", reason)
+
+
+def test_a_trajectory_executor_keeps_the_python_loop():
+    session = Session(load_scenario("one_dof_trajectory"))
+    assert mode_of(session) == ("python", "controller 'joint1_trajectory_controller' (TrajectoryExecutor) has no "
+                                          "compiled form")
+
+
+def test_a_chained_controller_keeps_the_python_loop(write_scenario):
+    session = Session(load_scenario(write_scenario(step_scenario(
+        controller_file="nac", start_controllers=["joint_state_controller", "joint1_velocity_controller",
+                                                  "joint1_admittance_controller"], commands={}))))
+    velocity = session.manager.controller("joint1_velocity_controller")
+    from jointctl.compiled.plan import controller_reason
+
+    assert controller_reason(velocity) == ("controller 'joint1_velocity_controller' (JointVelocityController) is "
+                                           "chained to 'joint1_admittance_controller'")
+
+
+def test_edges_keep_the_python_loop(write_scenario):
+    session = Session(load_scenario(write_scenario(step_scenario())))
+    session.manager.controller("joint_state_controller").subscribe(lambda sample: None)  # a ROS publisher's way
+    assert mode_of(session) == ("python", "controller 'joint_state_controller' (JointStateController) has "
+                                          "subscribers")
+    session = Session(load_scenario(write_scenario(step_scenario())))
+    session.loop.add_observer(print_nothing)
+    assert mode_of(session) == ("python", "the loop observer print_nothing has no compiled form")
+    session = Session(load_scenario(write_scenario(step_scenario())), realtime=True, speed=100.0)
+    assert mode_of(session) == ("python", "the loop is paced to the wall clock")
+
+
+def print_nothing(time_s: float) -> None:
+    pass
+
+
+def test_the_compiler_is_asked_at_each_run(write_scenario):
+    session = Session(load_scenario(write_scenario(step_scenario())))
+    assert isinstance(compile_loop(session.loop), object) and mode_of(session)[0] == "compiled"
+    session.loop.add_observer(print_nothing)
+    assert mode_of(session)[0] == "python"
+    session.loop.remove_observer(print_nothing)
+    assert mode_of(session)[0] == "compiled"
+
+
+def test_a_run_says_its_loop_in_its_metrics(write_scenario, tmp_path):
+    metrics = run_scenario(load_scenario(write_scenario(step_scenario(duration_s=0.2))), tmp_path / "c", mcap=True)
+    assert metrics["loop"] == "compiled" and "loop_reason" not in metrics
+    path = write_scenario(step_scenario(duration_s=0.2, loop="python"))
+    run_scenario(load_scenario(path), tmp_path / "p", mcap=False)
+    written = json.loads((tmp_path / "p" / "metrics.json").read_text())
+    assert written["loop"] == "python" and written["loop_reason"] == "the scenario asks for it (loop: python)"
+
+
+def test_the_loop_field_takes_auto_or_python(write_scenario):
+    from jointctl.errors import ConfigError
+
+    assert load_scenario(write_scenario(step_scenario())).loop == "auto"
+    with pytest.raises(ConfigError, match="loop.*must be one of auto, python"):
+        load_scenario(write_scenario(step_scenario(loop="compiled")))
+
+
+def test_a_hook_added_while_a_compiled_run_goes_takes_it_on_in_python_from_the_next_stretch(write_scenario):
+    from jointctl.compiled.plan import STRETCH_CYCLES
+
+    session = Session(load_scenario(write_scenario(step_scenario(duration_s=5.0))))
+    seen = []
+    original = session.loop.compiler
+
+    def compile_then_add_an_observer(loop):
+        run = original(loop)
+        hand_over = run._hand_over
+
+        def first_stretch_done(*args):  # an edge's thread adds its hook as the first stretch runs
+            hand_over(*args)
+            if not seen:
+                loop.add_observer(seen.append)
+
+        run._hand_over = first_stretch_done
+        return run
+
+    session.loop.compiler = compile_then_add_an_observer
+    session.run()
+    assert session.loop.mode == "python" and "changed" in session.loop.mode_reason
+    assert len(seen) == 5000 - STRETCH_CYCLES and seen[0] == pytest.approx(STRETCH_CYCLES * 0.001)
