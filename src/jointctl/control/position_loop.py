@@ -109,13 +109,15 @@ class PidControllerLoop:
     @property
     def reference_input(self) -> tuple[float, float, float]:
         """(position reference [m or rad], 0, 0): the one given for the next cycle, else the one in use, else
-        (none given yet: the controller commands nothing) where the joint is."""
+        (none given yet: the controller commands nothing) where the joint is (the hardware read)."""
         pending = self.controller._pending_reference
         value = pending[0][self.dof] if pending is not None else math.nan
         if value != value:
             value = self.controller.reference[self.dof]
         if value != value:
-            value = self.controller.hardware.position[self.index]
+            hardware = self.controller.hardware
+            hardware.read()
+            value = hardware.position[self.index]
         return float(value), 0.0, 0.0
 
     def set_reference(self, position: float) -> None:
