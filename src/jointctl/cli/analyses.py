@@ -284,7 +284,6 @@ def _bode_plan(args: argparse.Namespace, frequencies, safety) -> dict:
     from jointctl.identification.plan import plan_bode
 
     plant = _plant_file(args.plant)
-    _no_ros2_dry_run(args)
     if args.target is None:
         raise JointCtlError("reads the model from the target: give the robot or scenario (the served "
                             "/robot_description is read only when the robot moves)", field="--dry-run")
@@ -297,15 +296,6 @@ def _bode_plan(args: argparse.Namespace, frequencies, safety) -> dict:
         raise JointCtlError("is required (the loop to sweep)", field="--controller")
     return plan_bode(_loop_scenario(args), args.controller, frequencies, amplitude=args.amplitude, plant=plant,
                      safety=safety)
-
-
-def _no_ros2_dry_run(args: argparse.Namespace) -> None:
-    """A dry run plans on the simulated robot's controller of that name; a ros2_control robot's loop is
-    planned when it runs (its gains are its controller's, read then; ``plan`` in metrics.json)."""
-    if args.hardware == "ros2":
-        raise JointCtlError("plans on the simulated robot's controller; a ros2_control robot's loop is planned "
-                            "on its own gains when the tool runs (see plan in its metrics.json)",
-                            field="--dry-run")
 
 
 def _print_plan(plan: dict) -> int:
@@ -389,9 +379,11 @@ def _plant_file(path: Path | None) -> dict | None:
 
 def _loop_scenario(args: argparse.Namespace, overrides=()):
     """The scenario of ``bode``/``autotune``: a robot with the controller file its loop needs (default
-    position, velocity for a velocity controller's name), or a scenario; what the target was taken
-    for said once, when no gains under test are set."""
-    default = "velocity" if "velocity" in args.controller else "position"
+    position, velocity for a velocity controller's name; with ``--hardware ros2`` the robot's ROS 2 file,
+    ``ros2``: the simulated twin of a ros2_control robot, its controller of the same name), or a scenario;
+    what the target was taken for said once, when no gains under test are set."""
+    default = ("ros2" if getattr(args, "hardware", "sim") == "ros2"
+               else "velocity" if "velocity" in args.controller else "position")
     return target_scenario(args, default_controllers=default, extra_overrides=overrides, say=not overrides)
 
 
@@ -431,7 +423,6 @@ def _autotune(args: argparse.Namespace) -> int:
     if args.dry_run:
         from jointctl.identification.plan import plan_autotune
 
-        _no_ros2_dry_run(args)
         return _print_plan(plan_autotune(_loop_scenario(args), args.controller, bandwidth_hz=bandwidth_hz, zeta=zeta,
                                          step=args.step, plant=plant, safety=safety, settling_s=settling_s,
                                          ramp_s=args.ramp_s, remedies=tuple(args.remedy),
