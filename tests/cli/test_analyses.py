@@ -36,6 +36,13 @@ def nothing_moves(monkeypatch):
      ["the reference alone", "3 stepped sines"]),
     (["autotune", "one_dof", "--controller", "joint1_position_controller", "--bandwidth-hz", "1", "--dry-run",
       "--max-velocity", "0.5"], ["Designed gains", "Check step", "limit 0.5 m/s (--max-velocity)"]),
+    # A ros2_control robot's loop is planned on its simulated twin: the robot's ROS 2 file's pid_controller (an i
+    # with pid_controller's default clamps 0/0 integrates nothing: the model's i is 0), never connecting.
+    (["bode", "one_dof", "--hardware", "ros2", "--controller", "pid_controller", "--dry-run", "--points", "4",
+      "--set", "controllers.pid_controller.gains.joint1.i=50.0"],
+     ["controller pid_controller", "gains p 400, i 0, d 20, derivative on the error", "4 stepped sines"]),
+    (["autotune", "one_dof", "--hardware", "ros2", "--controller", "pid_controller", "--bandwidth-hz", "5",
+      "--dry-run"], ["controller pid_controller", "Designed gains", "(now p 400, i 0, d 20)", "Check step 0.1 m"]),
 ])
 def test_a_dry_run_prints_the_plan_and_moves_nothing(nothing_moves, capsys, tmp_path, argv, fragments) -> None:
     assert main([*argv, "--out", str(tmp_path / "out")]) == 0

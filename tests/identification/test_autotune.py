@@ -274,3 +274,52 @@ def test_autotune_warns_when_its_check_saturated() -> None:
     assert result["robot"]["saturation"]["step"]["share"] == pytest.approx(1 / 3000)
     saturated = [w for w in result["warnings"] if "saturated" in w]
     assert len(saturated) == 1 and "at the effort limit 1000 N" in saturated[0]
+
+
+def one_dof_ros2(overrides=()):
+    """The 1-DOF robot's ROS 2 file: ros2_controllers' pid_controller on the piston's effort at 1 kHz."""
+    return scenario_for_robot("one_dof", "ros2", list(overrides))
+
+
+def test_a_pid_controller_is_designed_as_the_loop_it_runs_and_written_as_its_ros2_parameters(tmp_path) -> None:
+    """From rest, pid_controller's plain position reference runs ros_controllers' law (the derivative on the error's
+    difference, the kick d·step/h clamped at 1000 N): the same gains as the chapter's controller for the same spec
+    and step, met on the robot to the model's precision; written as the ROS 2 file it loads from (doubles under
+    ros__parameters, gains.joint1.*; the integral's clamp both ways with anti-windup), which loads again."""
+    from jointctl.control.ros2_parameters import read_ros2_controllers
+    from jointctl.scenario.session import Session
+
+    result = autotune(one_dof_ros2, "pid_controller", bandwidth_hz=5.0, zeta=0.7, step=0.1, out_dir=tmp_path,
+                      remedies=("integral",), alternatives=False)
+    chapter = autotune(one_dof, "joint1_position_controller", bandwidth_hz=5.0, zeta=0.7, step=0.1,
+                       remedies=("integral",), check_on_robot=False, alternatives=False)
+    assert result["law"] == "control_toolbox" and result["derivative"] == "error" and result["joint"] == "joint1"
+    for key in ("p", "i", "d", "i_clamp"):
+        assert result["gains"][key] == pytest.approx(chapter["gains"][key], rel=1e-9), key
+    # The integral holds the piston's load: its clamp is twice m·g.
+    assert result["gains"]["i_clamp"] == pytest.approx(2 * 1.01 * G, rel=1e-3)
+    # The promise is the measurement: the check on the simulated robot (a fresh pid_controller, its first cycle
+    # differentiating from 0) steps as the model does.
+    assert result["robot"]["step_overshoot_pct"] == pytest.approx(result["model"]["overshoot_pct"], abs=0.05)
+    assert result["robot"]["step_settling_s"] == pytest.approx(result["model"]["settling_s"], abs=0.002)
+    assert abs(result["robot"]["step_final_error"]) <= 0.02 * 0.1
+    written = yaml.safe_load((tmp_path / "one_dof_ros2_controllers.yaml").read_text())
+    gains = written["pid_controller"]["ros__parameters"]["gains"]["joint1"]
+    assert set(gains) == {"p", "i", "d", "i_clamp_max", "i_clamp_min", "antiwindup"}
+    assert all(isinstance(gains[k], float) for k in ("p", "i", "d", "i_clamp_max", "i_clamp_min"))
+    assert gains["p"] == pytest.approx(round(result["gains"]["p"], 6)) and gains["antiwindup"] is True
+    assert gains["i_clamp_max"] == -gains["i_clamp_min"] == pytest.approx(round(result["gains"]["i_clamp"], 6))
+    read_ros2_controllers(written, "written")  # ROS 2's doubles, as ros2_control_node reads them
+    scenario = one_dof_ros2()
+    tuned = type(scenario)(**{**scenario.__dict__, "controller_file": tmp_path / "one_dof_ros2_controllers.yaml"})
+    with Session(tuned) as session:
+        loaded = session.manager.controller("pid_controller").gains[0]
+        assert (loaded.p, loaded.i, loaded.d) == (gains["p"], gains["i"], gains["d"])
+
+
+def test_a_remedy_pid_controller_has_no_parameter_for_is_refused_naming_it() -> None:
+    for remedy in ("measurement", "feedforward"):
+        with pytest.raises(IdentificationError) as info:
+            autotune(one_dof_ros2, "pid_controller", bandwidth_hz=5.0, zeta=0.7, step=0.1, remedies=(remedy,))
+        assert info.value.field == "--remedy" and info.value.value == remedy
+        assert "pid_controller" in info.value.message

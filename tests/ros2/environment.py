@@ -63,10 +63,13 @@ def sourced_variables(setup: Path) -> dict[str, str]:
     return _sourced[setup]
 
 
-def take_domain() -> int:
-    """A ROS_DOMAIN_ID no other live test process holds (a lock file per id, with the holder's pid)."""
+def take_domain(besides=()) -> int:
+    """A ROS_DOMAIN_ID no other live test process holds (a lock file per id, with the holder's pid), and none of
+    ``besides`` (domains this process holds still: a second graph in one test module)."""
     DOMAIN_LOCKS.mkdir(parents=True, exist_ok=True)
     for domain in DOMAINS:
+        if domain in besides:
+            continue
         lock = DOMAIN_LOCKS / str(domain)
         try:
             holder = int(lock.read_text() or 0)

@@ -42,6 +42,9 @@ def test_pid_controller_rests_where_theory_says_and_takes_gains_live(served):
     env = robot.env
     listed = ros2(env, "control", "list_controllers").stdout
     assert "pid_controller/PidController" in listed, listed
+    # The controller manager's update_rate is the loop's (the file's 1000 Hz), as a ROS 2 client reads it.
+    rate = ros2(env, "param", "get", "/controller_manager", "update_rate").stdout
+    assert rate.strip().endswith("1000"), rate
 
     def reference(value: float) -> None:
         ros2(env, "topic", "pub", "-r", "20", "-t", "10", "/pid_controller/reference",

@@ -331,3 +331,77 @@ def test_an_interrupted_autotune_puts_the_gains_back(rig, tmp_path) -> None:
     assert process.returncode == 130 and "interrupted" in err, err
     assert {name: gain(rig, "pid_controller", f"gains.joint1.{name}") for name in "pid"} == ACCELERATION_GAINS
     assert not (tmp_path / "metrics.json").exists()
+
+
+def test_a_robust_design_of_the_acceleration_loop_is_refused_before_anything_is_sent(rig, tmp_path) -> None:
+    """--robust varies a simulated robot, whose pid_controller commands an effort: the mock's acceleration joint has
+    no such twin (jointctl's robots take efforts), and is refused in one line before the design runs."""
+    result = jointctl(rig, "autotune", str(RIG / "robot.urdf"), "--controllers", str(RIG / "controllers.yaml"),
+                      "--hardware", "ros2", "--controller", "pid_controller", "--bandwidth-hz", "2", "--robust",
+                      "payload_kg=0:1", "--out", str(tmp_path))
+    errors = [line for line in result.stderr.splitlines() if line.startswith("jointctl: error:")]
+    assert result.returncode == 2 and len(errors) == 1, result.stderr
+    assert "--robust" in errors[0] and "acceleration" in errors[0]
+    assert {name: gain(rig, "pid_controller", f"gains.joint1.{name}") for name in "pid"} == ACCELERATION_GAINS
+    assert not (tmp_path / "metrics.json").exists()
+
+
+#: The 1-DOF robot: a 1.01 kg vertical piston (g 9.81 m/s²), the robot jointctl serves as a ros2_control robot.
+PISTON_KG, G = 1.01, 9.81
+
+
+@pytest.fixture(scope="module")
+def served_piston(ros2_env, tmp_path_factory):
+    """``jointctl serve one_dof --ros2 --controllers ros2`` (pid_controller on the piston's effort, 1 kHz) on a DDS
+    domain of its own (the mock rig's controller manager has the same names), its pid_controller holding -0.5 m."""
+    from tests.ros2.conftest import SETUP
+    from tests.ros2.environment import release_domain, ros2_environment, stop_daemon, take_domain
+    from tests.ros2.served import ServedRobot
+
+    domain = take_domain(besides=(int(ros2_env["ROS_DOMAIN_ID"]),))
+    folder = tmp_path_factory.mktemp("served_piston")
+    env = ros2_environment(SETUP, domain, folder / "ros_log")
+    env["PYTHONPATH"] = f"{ROOT / 'src'}:{env.get('PYTHONPATH', '')}"
+    robot = ServedRobot(env, folder / "serve.log", "one_dof", "--controllers", "ros2")
+    try:
+        robot.wait_up(["joint_state_broadcaster", "pid_controller"])
+        ros2(env, "topic", "pub", "-r", "20", "-t", "10", "/pid_controller/reference",
+             "control_msgs/msg/MultiDOFCommand", "{dof_names: [joint1], values: [-0.5]}")
+        robot.rest("joint1")
+        yield env
+    finally:
+        robot.stop()
+        stop_daemon(env)
+        release_domain(domain)
+
+
+def test_a_robust_design_runs_its_family_on_the_simulated_twin_and_checks_the_served_robot(served_piston,
+                                                                                          tmp_path) -> None:
+    """jointctl's served 1-DOF robot as the ros2_control robot, its own robot folder as the twin: the family
+    (payload 0-1 kg) runs in simulation, the robust gains then step the robot. The robot is the family's 0 kg
+    plant, so its step is that plant's run: the same overshoot and rest (m·g/p short of the reference: gravity
+    binds there, and on the robot), its settling later by at most the reference's way to it; the gains go back."""
+    env = served_piston
+    result = jointctl(env, "autotune", "one_dof", "--hardware", "ros2", "--controller", "pid_controller",
+                      "--overshoot-pct", "10", "--settling-s", "0.3", "--step", "0.1", "--robust", "payload_kg=0:1",
+                      "--robust-samples", "0", "--out", str(tmp_path), timeout=600)
+    assert result.returncode == 0, result.stderr
+    tuned = json.loads(result.stdout)
+    robust, robot = tuned["robust"], tuned["robot"]
+    assert robust["law"] == "control_toolbox" and len(robust["robot"]) == 2 + 1
+    assert all(not row.get("error") for row in robust["robot"])
+    twin = next(row for row in robust["robot"] if row["values"] == {"payload_kg": 0.0})
+    p = robust["gains"]["p"]
+    assert robot["gains"] == {k: pytest.approx(round(robust["gains"][k], 6)) for k in ("p", "i", "d")}
+    assert robot["step_overshoot_pct"] == pytest.approx(twin["overshoot_pct"], abs=0.05)
+    assert robot["step_final_error"] == pytest.approx(PISTON_KG * G / p, rel=1e-4)
+    assert twin["final_error"] == pytest.approx(PISTON_KG * G / p, rel=1e-4)
+    assert -0.001 <= robot["step_settling_s"] - twin["settling_s"] <= DELAY_BUDGET_S  # a 1 ms cycle's reading
+    assert robot["binds"] == twin["binds"] == ["gravity"]
+    assert "on the robot, the step of 0.1 misses the spec" in result.stderr
+    # The gains found are back; the file is the controller's parameters with the robust gains, as ROS 2 reads it.
+    assert tuned["gains_restored"] == {"p": 400.0, "i": 0.0, "d": 20.0}
+    assert {name: gain(env, "pid_controller", f"gains.joint1.{name}") for name in "pid"} == tuned["gains_restored"]
+    written = yaml.safe_load((tmp_path / "pid_controller_tuned.yaml").read_text())
+    joint1 = written["pid_controller"]["ros__parameters"]["gains"]["joint1"]
+    assert (joint1["p"], joint1["i"], joint1["d"]) == (robot["gains"]["p"], robot["gains"]["i"], robot["gains"]["d"])

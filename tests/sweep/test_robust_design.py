@@ -273,3 +273,32 @@ def test_a_step_that_would_take_some_plant_beyond_the_joints_range_is_refused_na
         check_limits(design_, plants, robot, "joint1", {"joint1": -0.5}, -0.5, 0.45)
     assert "at payload_kg 0:" in str(caught.value) and caught.value.field == "--step"
     check_limits(design_, plants, robot, "joint1", {"joint1": -0.5}, -0.5, 0.05)  # a small step fits
+
+
+@pytest.mark.slow
+def test_a_pid_controller_is_designed_against_the_family_and_written_as_its_ros2_parameters(tmp_path, capsys) -> None:
+    """The robot's ROS 2 file (pid_controller on the piston's effort): every plant runs under pid_controller on the
+    simulated robot (a fresh PID: its first cycle differentiates the error from 0) and meets the spec at the step;
+    the gains go into its parameters as doubles, the integral's clamp both ways."""
+    out = tmp_path / "robust"
+    assert main(["autotune", "one_dof", "--controllers", "ros2", "--controller", "pid_controller", "--overshoot-pct",
+                 "10", "--settling-s", "0.3", "--step", "0.3", "--robust", "payload_kg=0:5", "--robust-samples", "2",
+                 "--remedy", "integral", "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    printed = json.loads(captured.out)
+    assert "warning" not in captured.err
+    robust = printed["robust"]
+    assert printed["meets_spec"] and robust["law"] == "control_toolbox" and robust["derivative"] == "error"
+    assert_dynamics_meet_the_spec(robust["robot"], 0.3)
+    for row in robust["robot"]:
+        assert abs(row["final_error"]) <= 0.02 * 0.3, row
+    # The promise is the measurement: the model and the runs under pid_controller agree.
+    assert robust["robot_worst"]["overshoot_pct"] == pytest.approx(robust["model_worst"]["overshoot_pct"], abs=0.2)
+    gains = robust["gains"]
+    assert gains["i_clamp"] == pytest.approx(2 * (MASS_KG + 5.0) * G, rel=1e-3)
+    written = yaml.safe_load((out / "one_dof_ros2_controllers.yaml").read_text())
+    joint1 = written["pid_controller"]["ros__parameters"]["gains"]["joint1"]
+    assert joint1 == pytest.approx({"p": round(gains["p"], 6), "i": round(gains["i"], 6), "d": round(gains["d"], 6),
+                                    "i_clamp_max": round(gains["i_clamp"], 6), "i_clamp_min": -round(gains["i_clamp"], 6),
+                                    "antiwindup": True})
+    assert all(isinstance(v, float) for k, v in joint1.items() if k != "antiwindup")

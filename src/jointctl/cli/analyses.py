@@ -284,7 +284,6 @@ def _bode_plan(args: argparse.Namespace, frequencies, safety) -> dict:
     from jointctl.identification.plan import plan_bode
 
     plant = _plant_file(args.plant)
-    _no_ros2_dry_run(args)
     if args.target is None:
         raise JointCtlError("reads the model from the target: give the robot or scenario (the served "
                             "/robot_description is read only when the robot moves)", field="--dry-run")
@@ -297,15 +296,6 @@ def _bode_plan(args: argparse.Namespace, frequencies, safety) -> dict:
         raise JointCtlError("is required (the loop to sweep)", field="--controller")
     return plan_bode(_loop_scenario(args), args.controller, frequencies, amplitude=args.amplitude, plant=plant,
                      safety=safety)
-
-
-def _no_ros2_dry_run(args: argparse.Namespace) -> None:
-    """A dry run plans on the simulated robot's controller of that name; a ros2_control robot's loop is
-    planned when it runs (its gains are its controller's, read then; ``plan`` in metrics.json)."""
-    if args.hardware == "ros2":
-        raise JointCtlError("plans on the simulated robot's controller; a ros2_control robot's loop is planned "
-                            "on its own gains when the tool runs (see plan in its metrics.json)",
-                            field="--dry-run")
 
 
 def _print_plan(plan: dict) -> int:
@@ -389,9 +379,11 @@ def _plant_file(path: Path | None) -> dict | None:
 
 def _loop_scenario(args: argparse.Namespace, overrides=()):
     """The scenario of ``bode``/``autotune``: a robot with the controller file its loop needs (default
-    position, velocity for a velocity controller's name), or a scenario; what the target was taken
-    for said once, when no gains under test are set."""
-    default = "velocity" if "velocity" in args.controller else "position"
+    position, velocity for a velocity controller's name; with ``--hardware ros2`` the robot's ROS 2 file,
+    ``ros2``: the simulated twin of a ros2_control robot, its controller of the same name), or a scenario;
+    what the target was taken for said once, when no gains under test are set."""
+    default = ("ros2" if getattr(args, "hardware", "sim") == "ros2"
+               else "velocity" if "velocity" in args.controller else "position")
     return target_scenario(args, default_controllers=default, extra_overrides=overrides, say=not overrides)
 
 
@@ -431,7 +423,6 @@ def _autotune(args: argparse.Namespace) -> int:
     if args.dry_run:
         from jointctl.identification.plan import plan_autotune
 
-        _no_ros2_dry_run(args)
         return _print_plan(plan_autotune(_loop_scenario(args), args.controller, bandwidth_hz=bandwidth_hz, zeta=zeta,
                                          step=args.step, plant=plant, safety=safety, settling_s=settling_s,
                                          ramp_s=args.ramp_s, remedies=tuple(args.remedy),
@@ -461,27 +452,100 @@ def _autotune(args: argparse.Namespace) -> int:
 def _robust_autotune(args: argparse.Namespace, zeta: float, bandwidth_hz: float, settling_s: float | None) -> int:
     """``autotune --robust``: gains for the spec at the step on every plant of the family (see
     :mod:`jointctl.sweep.robust_design`), each plant run on the simulated robot; what binds said, with the
-    remedies checked."""
-    from jointctl.identification.autotune import overshoot_of
-    from jointctl.sweep.robust_design import parse_range, robust_autotune, write_robust
+    remedies checked. With ``--hardware ros2`` the family is the robot's simulated twin's and the design is then
+    checked on the robot (:func:`_robust_ros2`)."""
+    from jointctl.sweep.robust_design import parse_range, write_robust
 
-    for flag, unsupported in (("--hardware", args.hardware != "sim"), ("--plant", args.plant is not None),
-                              ("--dry-run", getattr(args, "dry_run", False))):
+    why = "a robust design runs on the simulated robot's model family (with --hardware ros2: then checked on the robot)"
+    for flag, unsupported in (("--hardware", args.hardware not in ("sim", "ros2")),
+                              ("--plant", args.plant is not None), ("--dry-run", getattr(args, "dry_run", False))):
         if unsupported:
-            raise JointCtlError("a robust design runs on the simulated robot's model family; drop it or --robust",
-                                field=flag, value=getattr(args, flag[2:].replace("-", "_")))
+            raise JointCtlError(f"{why}; drop it or --robust", field=flag,
+                                value=getattr(args, flag[2:].replace("-", "_")))
     ranges = [parse_range(item) for item in args.robust]  # checked before anything runs
-    result = robust_autotune(lambda overrides: _loop_scenario(args, overrides), args.controller, ranges,
-                             overshoot_pct=100 * overshoot_of(zeta), settling_s=settling_s, zeta=zeta,
-                             bandwidth_hz=bandwidth_hz, step=args.step, target=args.target,
-                             controllers=args.controllers, overrides=args.overrides, samples=args.robust_samples,
-                             seed=args.seed, scheduler=args.scheduler, workers=args.workers,
-                             remedies=tuple(args.remedy), ramp_s=args.ramp_s)
-    write_robust(args.out, _loop_scenario(args), args.controller, result)
+    if args.hardware == "ros2":
+        result = _robust_ros2(args, ranges, zeta, bandwidth_hz, settling_s)
+    else:
+        result = _robust_design(args, ranges, zeta, bandwidth_hz, settling_s, args.controller)
+        write_robust(args.out, _loop_scenario(args), args.controller, result)
     print(metrics_json(result))
     say_warnings(result)
     print(f"wrote {result['yaml']}", file=sys.stderr)
     return 0
+
+
+def _robust_design(args: argparse.Namespace, ranges, zeta: float, bandwidth_hz: float, settling_s: float | None,
+                   controller: str, twin_overrides=()) -> dict:
+    """:func:`~jointctl.sweep.robust_design.robust_autotune` of ``controller`` on the target's simulated robot,
+    ``twin_overrides`` after the user's ``--set``."""
+    from jointctl.identification.autotune import overshoot_of
+    from jointctl.sweep.robust_design import robust_autotune
+
+    twin = list(twin_overrides)
+    controllers = args.controllers or ("ros2" if args.hardware == "ros2" else None)
+    return robust_autotune(lambda overrides: _loop_scenario(args, [*twin, *overrides]), controller, ranges,
+                           overshoot_pct=100 * overshoot_of(zeta), settling_s=settling_s, zeta=zeta,
+                           bandwidth_hz=bandwidth_hz, step=args.step, target=args.target, controllers=controllers,
+                           overrides=[*args.overrides, *twin], samples=args.robust_samples, seed=args.seed,
+                           scheduler=args.scheduler, workers=args.workers, remedies=tuple(args.remedy),
+                           ramp_s=args.ramp_s)
+
+
+def _robust_ros2(args: argparse.Namespace, ranges, zeta: float, bandwidth_hz: float, settling_s: float | None) -> dict:
+    """``autotune --robust --hardware ros2``: the family is the simulated twin's (the target robot with its ROS 2
+    controller file, ``--controllers``, default ``ros2``), posed as the robot is (its joint states, the loop's
+    joint at the reference it holds) and run at the robot's update rate; its controller of the same name must be
+    the pid_controller servoing the same joint. The design runs with the robot left alone (this side off the graph:
+    its joint states do not pile up unread while the family runs); then the robot is joined again and the robust
+    design checked on it (:func:`~jointctl.sweep.robust_served.check_served`) and written as its controller's
+    parameters."""
+    from jointctl.control.manager import read_yaml
+    from jointctl.control.ros2_parameters import is_ros2_parameters
+    from jointctl.identification.plan import configured_loop
+    from jointctl.model.loader import load_robot_model
+    from jointctl.sweep.robust_design import write_robust
+    from jointctl.sweep.robust_served import check_served, ros2_gains, served_warnings
+
+    if args.target is None:
+        raise JointCtlError("is required with --robust: the robot (its folder or built-in name, with --controllers for "
+                            "its ROS 2 file, default ros2) whose simulated twin the family varies", field="target")
+    safety = safety_from_args(args)
+    twin = _loop_scenario(args)
+    if not is_ros2_parameters(read_yaml(twin.controller_file)):
+        raise JointCtlError("must name the robot's ROS 2 controller file (its pid_controller is the twin of the "
+                            "robot's)", field="--controllers", value=args.controllers)
+    robot = load_robot_model(twin.robot.description)
+    with _served(args, controller=args.controller, joint=args.joint, tool="robust") as (session, name):
+        hardware, loop = session.hardware, session.hardware.loop
+        configured_loop(twin, robot, controller=name, joint=loop.joint)  # the twin's pid_controller of that joint
+        hardware.read()
+        pose = dict(zip(hardware.joint_names, hardware.position))
+        held = (hardware.set_points or {}).get(loop.joint)
+        pose[loop.joint] = held if held is not None else pose[loop.joint]
+        period, joint = session.loop.period_s, loop.joint
+    # A joint resting on a limit sits a little beyond it: the twin starts at the limit.
+    overrides = [f"initial_positions.{name_}={_within(robot, name_, value)!r}" for name_, value in pose.items()
+                 if robot.has_joint(name_)]
+    if abs(twin.loop_period_s - period) > 1e-9 * period:
+        overrides.append(f"loop_rate_hz={1 / period!r}")
+    print(f"jointctl: the family is {args.target}'s simulated {name}, posed as the robot is, at {1 / period:g} Hz",
+          file=sys.stderr)
+    result = _robust_design(args, ranges, zeta, bandwidth_hz, settling_s, name, overrides)
+    result["twin"] = {"target": args.target, "controllers": args.controllers or "ros2", "overrides": overrides}
+    with _served(args, controller=name, joint=joint, tool="robust") as (session, _):
+        hardware = session.hardware
+        result["robot"] = check_served(session, name, result, safety=safety)
+        result["gains_restored"] = hardware.gains(name)
+        result["warnings"] = [*result.get("warnings", []), *served_warnings(result)]
+        write_robust(args.out, twin, name, result,
+                     document=hardware.tuned_parameters(name, ros2_gains(result, hardware.loop.command_dof)))
+    return result
+
+
+def _within(robot, joint: str, value: float) -> float:
+    """``value`` [m or rad] within ``joint``'s range (unbounded: as it is)."""
+    lower, upper, _ = robot.joint(joint).range_and_speed()
+    return float(min(max(value, lower), upper))
 
 
 def _joint_type(robot: str | None, joint: str) -> str:

@@ -116,10 +116,15 @@ def _session_scenario(args, files, scenario, folder: Path, period: float, scenar
 def refuse(loop, tool: str | None) -> None:
     """A ConfigError when ``tool`` needs an effort model ``loop`` (a served
     :class:`~jointctl.ros2.served_hardware.Ros2Loop`) has not: autotune (PD gains on an effort) on anything
-    but a pid_controller commanding effort or acceleration, identify (the effort must move the plant) on
-    a pid_controller commanding velocity or position."""
+    but a pid_controller commanding effort or acceleration, its robust design ("robust": a family of the
+    simulated robot, whose pid_controller commands an effort) on anything but one commanding effort, identify
+    (the effort must move the plant) on a pid_controller commanding velocity or position."""
     modelled = loop.has_gains and loop.actuation in MODELLED
-    if not modelled and tool == "autotune":
+    if tool == "robust" and modelled and loop.actuation != "effort":
+        raise ConfigError(f"the family is the simulated robot's, whose pid_controller commands an effort; "
+                          f"{loop.controller} commands {loop.joint}'s {loop.actuation}", field="--robust",
+                          value=loop.controller)
+    if not modelled and tool in ("autotune", "robust"):
         why = ("a forward command controller has no gains (the hardware servos the joint)" if not loop.has_gains
                else f"it commands {loop.joint}'s {loop.actuation}: jointctl designs PD gains on an effort or an "
                     "acceleration")

@@ -47,7 +47,6 @@ everything else as loaded.
 
 from __future__ import annotations
 
-import copy
 import math
 import warnings
 from pathlib import Path
@@ -57,16 +56,17 @@ import yaml
 from scipy.optimize import fsolve
 
 from jointctl.control.joint_controllers import derivative_law
+from jointctl.control.position_loop import law_of
 from jointctl.control.manager import read_yaml
-from jointctl.errors import ConfigError
 from jointctl.identification.frequency_response import (LoopModel, _crossing, held_reference, loop_controller,
                                                          measure,
                                                          measure_servoed, model_plant, plant_friction, plant_of,
                                                          plant_source, servo_reference)
 from jointctl.identification.plant_fit import IdentificationError
+from jointctl.identification.gain_files import fields_of, setting_overrides, tuned_document
 from jointctl.identification.step_design import (INTEGRAL_TIMES, OVERSHOOT_TOLERANCE_PCT, SETTLING_TOLERANCE,
-                                                 StepDesign, binding, lowest_settling, ramp_for_kick, solve_step,
-                                                 with_integral)
+                                                 StepDesign, binding, lowest_settling, ramp_for_kick, remedy_lacking,
+                                                 solve_step, with_integral)
 from jointctl.identification.step_loop import JointLoop, holding_effort, reference_step, step_figures
 from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Guard, Safety, SaturationMonitor, envelope_for,
                                             run_guarded, saturation_text)
@@ -253,6 +253,12 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
     gains = controller.pid.gains
     period_s = session.loop.period_s
     law = getattr(controller, "derivative", "error")
+    kind = law_of(controller)  # ros_controllers' JointPositionController, or ros2_controllers' pid_controller
+    for remedy in remedies:
+        lacking = remedy_lacking(kind, remedy)
+        if lacking is not None:
+            session.close()
+            raise IdentificationError(f"{controller_name} cannot take it: {lacking}", field="--remedy", value=remedy)
     robot = session.robot
 
     def design_with(remedy_set: tuple[str, ...]) -> dict:
@@ -260,7 +266,7 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
                     {"p": gains.p, "i": gains.i, "d": gains.d}, bandwidth_hz=bandwidth_hz, zeta=zeta, step=step,
                     settling_s=settling_s, derivative=law, safety=safety, gravity_m_s2=scenario.gravity_m_s2,
                     ramp_s=ramp_s or 0.0, reference=reference, remedies=remedy_set, integrator="euler",
-                    feedforward="gravity" in getattr(controller, "feedforward_terms", ()))
+                    feedforward="gravity" in getattr(controller, "feedforward_terms", ()), law=kind)
 
     result = design_with(tuple(remedies))
     session.close()
@@ -288,7 +294,8 @@ def autotune(scenario_for, controller_name: str, *, bandwidth_hz: float, zeta: f
         result["warnings"].extend(_binding_warnings(result))
     if out_dir is not None:
         source = Path(scenario.controller_file)
-        _write(out_dir, source.name, read_yaml(source), controller_name, result)
+        _write(out_dir, source.name, read_yaml(source), controller_name, result,
+               overrides=scenario.controller_overrides)
     return result
 
 
@@ -340,7 +347,7 @@ def _alternatives(result: dict, design_with, scenario_for, controller_name: str,
     wanted: list[str] = []
     for bind in result["binds"]:
         for remedy in REMEDIES.get("effort" if bind in ("max-effort", "spec") else bind, ()):
-            if remedy in applied or remedy in wanted:
+            if remedy in applied or remedy in wanted or remedy_lacking(result.get("law", "ros_control"), remedy):
                 continue
             if remedy == "measurement" and result["derivative"] == "measurement":
                 continue
@@ -421,7 +428,8 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
          gravity: float | None, effort_limit: float, previous_gains: dict, *, bandwidth_hz: float, zeta: float,
          step: float, settling_s: float | None = None, derivative: str = "error", safety: Safety | None = None,
          gravity_m_s2=(0.0, 0.0, -9.81), ramp_s: float = 0.0, reference: float | None = None,
-         remedies: tuple[str, ...] = (), integrator: str = "hold", feedforward: bool = False) -> dict:
+         remedies: tuple[str, ...] = (), integrator: str = "hold", feedforward: bool = False,
+         law: str = "ros_control") -> dict:
     """Design the gains for the spec and predict them on the models (no robot involved): the plant from
     ``plant`` (an identification's metrics, its ``gravity_load_n`` the load) or else ``robot``'s model at
     ``pose`` with ``gravity`` [N or N·m, magnitude] as the load. ``settling_s`` is recorded in the spec when
@@ -435,8 +443,9 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
     :data:`~jointctl.identification.step_design.REMEDY_NAMES`) change the loop designed; ``integrator`` is how
     the joint moves over a period (:class:`~jointctl.identification.step_loop.JointLoop`: "euler" for the
     simulated robot, "hold" for a real one); ``feedforward``: the controller already adds the model's gravity
-    effort (its ``feedforward: {gravity: true}``). A velocity loop is
-    refused when a step of ``step`` would exceed ``effort_limit``, naming the bandwidth it allows."""
+    effort (its ``feedforward: {gravity: true}``); ``law`` the controller whose PID runs it (JointLoop's: "ros_control", or "control_toolbox" for
+    ros2_controllers' pid_controller; the result's ``law``, which says how its gains are written). A velocity
+    loop is refused when a step of ``step`` would exceed ``effort_limit``, naming the bandwidth it allows."""
     safety = safety or DEFAULT
     user_effort = safety.limits.max_effort
     effort_flag = "effort limit"
@@ -451,13 +460,13 @@ def tune(controller_name: str, joint: str, loop: str, period_s: float, plant: di
         source = "robot model"
     common = {"controller": controller_name, "joint": joint, "loop": loop, "plant_source": source, "mass": mass,
               "damping": damping, "gravity_load": gravity, "effort_limit": effort_limit, "step": step,
-              "previous_gains": dict(previous_gains)}
+              "previous_gains": dict(previous_gains), "law": law}
     if loop == "position":
         return {**common, **_design_position(
             mass, damping, period_s, plant, robot, joint, pose, effort_limit, effort_flag,
             bandwidth_hz=bandwidth_hz, zeta=zeta, step=step, settling_s=settling_s, derivative=derivative,
             safety=safety, gravity_m_s2=gravity_m_s2, ramp_s=ramp_s, reference=reference, remedies=remedies,
-            integrator=integrator, feedforward=feedforward)}
+            integrator=integrator, feedforward=feedforward, law=law)}
     step = abs(step)  # a velocity loop's check steps up: the bandwidth is the same both ways
     gains = design(mass, damping, loop=loop, bandwidth_hz=bandwidth_hz, zeta=zeta, period_s=period_s)
     need = gains["p"] * step + gravity
@@ -489,12 +498,12 @@ def _design_position(mass: float, damping: float, period_s: float, plant, robot,
                      effort_limit: float, effort_flag: str, *, bandwidth_hz: float, zeta: float, step: float,
                      settling_s: float | None, derivative: str, safety: Safety, gravity_m_s2, ramp_s: float,
                      reference: float | None, remedies: tuple[str, ...], integrator: str = "hold",
-                     feedforward: bool = False) -> dict:
+                     feedforward: bool = False, law: str = "ros_control") -> dict:
     """A position loop's gains for the move that will run (see :func:`tune` and
     :mod:`jointctl.identification.step_design`): the linear design for ``zeta`` and ``bandwidth_hz`` first;
     its step overshoot (``exp(-πζ/√(1-ζ²))``) and settling time (``settling_s``, else the linear loop's) are
     then met on the loop as it runs at the step, when the linear design does not already meet them there."""
-    law = "measurement" if "measurement" in remedies else derivative
+    kind, law = law, "measurement" if "measurement" in remedies else derivative
     feedforward = feedforward or "feedforward" in remedies
     hold = _hold_profile(plant, robot, joint, pose, gravity_m_s2)
     start = float(pose.get(joint, 0.0)) if reference is None else float(reference)
@@ -512,7 +521,7 @@ def _design_position(mass: float, damping: float, period_s: float, plant, robot,
     target_settling = settling_s if settling_s is not None else settling_time(t, y, 0.0, float(y[-1]))
     asked_ramp = ramp_s
     base = JointLoop(mass, damping, period_s, controller_limit, hold, p=linear["p"], d=linear["d"], derivative=law,
-                     feedforward=feedforward, integrator=integrator)
+                     feedforward=feedforward, integrator=integrator, law=kind)
     clamp = _integral_clamp(base, start, step, controller_limit) if "integral" in remedies else None
     if clamp is not None:
         base = with_integral(base, target_settling, clamp, INTEGRAL_TIMES[0])
@@ -807,16 +816,17 @@ def _model_bandwidth(model: LoopModel, around_hz: float) -> float:
     return _crossing(f, gain - dc[0], -3.0103)
 
 
+def design_fields(result: dict) -> dict:
+    """The controller file's fields that run ``result``'s loop (:func:`~jointctl.identification.gain_files.fields_of`):
+    its PID gains (the integral's clamp and anti-windup with an integral), its derivative law and gravity
+    feed-forward when a remedy changed them; ros_control's names, or pid_controller's ``gains.<joint>.*``."""
+    return fields_of(result["gains"], law=result.get("law", "ros_control"), joint=result.get("joint"),
+                     derivative=result.get("derivative"), feedforward="gravity" in (result.get("feedforward") or ()))
+
+
 def _overrides(controller_name: str, result: dict) -> list[str]:
-    """The scenario overrides that run ``result``'s loop: its PID gains (``i_clamp`` and ``antiwindup`` with an
-    integral), its derivative law and gravity feed-forward when a remedy changed them."""
-    name = f"controllers.{controller_name}"
-    found = [f"{name}.pid.{k}={v!r}" for k, v in result["gains"].items()]
-    if result.get("derivative") == "measurement":
-        found.append(f"{name}.derivative=measurement")
-    if "gravity" in (result.get("feedforward") or ()):
-        found.append(f"{name}.feedforward.gravity=true")
-    return found
+    """The scenario overrides that run ``result``'s loop (:func:`design_fields`)."""
+    return setting_overrides(controller_name, design_fields(result))
 
 
 def _rest_override(result: dict) -> list[str]:
@@ -834,7 +844,7 @@ def _check_on_robot(scenario_for, controller_name: str, result: dict, loop: str,
     step, inside the safe amplitude); the saturation of both."""
     scenario = scenario_for([*_overrides(controller_name, result), *_rest_override(result)])
     session = Session(scenario)
-    controller = session.manager.controller(controller_name)
+    controller, _ = loop_controller(session.manager, controller_name, result["joint"] if loop == "position" else None)
     if result.get("model_integral"):
         # As on a robot that has held its pose: the integral holds the load it carries there.
         controller.pid.i_state = float(result["model_integral"])
@@ -959,27 +969,14 @@ def _step(session: Session, joint: str, set_reference, loop: str, step: float, *
                            "step": {**share, "text": saturation_text(share, monitor, envelope.unit)}}}
 
 
-def _write(out_dir, file_name: str, document: dict, controller_name: str, result: dict) -> None:
-    """The controller ``document`` (namespace -> controllers) with the tuned gains, as ``file_name``
-    in ``out_dir``, and ``metrics.json`` (strict JSON: a figure not measured or unbounded is null)."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tuned = copy.deepcopy(document)
-    found = False
-    for namespace in tuned.values():
-        if isinstance(namespace, dict) and controller_name in namespace:
-            entry = namespace[controller_name]
-            pid = entry.setdefault("pid", {})
-            pid.update({k: v if isinstance(v, bool) else round(v, 6) for k, v in result["gains"].items()})
-            # What a remedy changed besides the gains: the derivative law and the gravity feed-forward.
-            if result.get("derivative") == "measurement":
-                entry["derivative"] = "measurement"
-            if "gravity" in (result.get("feedforward") or ()):
-                entry.setdefault("feedforward", {})["gravity"] = True
-            found = True
-    if not found:
-        raise ConfigError("the controller is not in its file", source=file_name, field=controller_name)
-    _write_document(out, file_name, tuned, controller_name, result)
+def _write(out_dir, file_name: str, document: dict, controller_name: str, result: dict, *,
+           overrides: dict | None = None) -> None:
+    """The controller ``document`` (a ros_control file's tree, or a ROS 2 parameters file's) with what ``--set``
+    changed of the controller (``overrides``, a scenario's ``controller_overrides``) and the tuned gains
+    (:func:`design_fields`: with a remedy's derivative law and gravity feed-forward), as ``file_name`` in
+    ``out_dir``, and ``metrics.json`` (strict JSON: a figure not measured or unbounded is null)."""
+    tuned = tuned_document(document, controller_name, design_fields(result), file_name, overrides=overrides)
+    _write_document(out_dir, file_name, tuned, controller_name, result)
 
 
 def _write_document(out_dir, file_name: str, tuned: dict, controller_name: str, result: dict) -> None:

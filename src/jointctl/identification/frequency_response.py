@@ -52,6 +52,8 @@ from pathlib import Path
 import numpy as np
 
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
+from jointctl.control.pid_controller import PidController
+from jointctl.control.position_loop import position_loop
 from jointctl.errors import ConfigError
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Envelope, Guard, Safety, SaturationMonitor, allow,
@@ -269,9 +271,11 @@ def measure_in_session(session, controller_name: str, frequencies_hz, *, amplitu
     return points, context
 
 
-def loop_controller(manager, name: str):
+def loop_controller(manager, name: str, joint: str | None = None):
     """(controller, "position" | "velocity") for ``name``, an effort position or velocity controller
-    of ``manager``; a ConfigError naming ``--controller`` otherwise."""
+    of ``manager``, or a pid_controller's effort position loop of ``joint`` (its only dof when None) as
+    :func:`~jointctl.control.position_loop.position_loop` shows it; a ConfigError naming ``--controller``
+    otherwise."""
     try:
         controller = manager.controller(name)
     except Exception:
@@ -281,7 +285,18 @@ def loop_controller(manager, name: str):
         return controller, "position"
     if isinstance(controller, JointVelocityController):
         return controller, "velocity"
-    raise ConfigError("must be an effort position or velocity controller", field="--controller", value=name)
+    if isinstance(controller, PidController):
+        if joint is None and len(controller.dof_names) > 1:
+            raise ConfigError(f"servos {', '.join(controller.dof_names)}: give --joint", field="--controller",
+                              value=name)
+        found = position_loop(controller, joint)
+        if found is not None:
+            return found, "position"
+        raise ConfigError("the tools model a pid_controller that commands a joint's effort on its own position "
+                          "(command_interface effort, reference_and_state_interfaces starting with position, "
+                          "the joint's own state)", field="--controller", value=name)
+    raise ConfigError("must be an effort position or velocity controller, or a pid_controller commanding an effort",
+                      field="--controller", value=name)
 
 
 def measure_servoed(session: Session, joint: str, frequencies_hz, *, amplitude: float | None = None,

@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import copy
 import math
+from pathlib import Path
 
 import numpy as np
 
 from jointctl.control.joint_controllers import derivative_law
 from jointctl.control.manager import read_yaml, set_dotted
+from jointctl.control.ros2_parameters import is_ros2_parameters, read_ros2_controllers
 from jointctl.errors import ConfigError
 from jointctl.identification.autotune import _gravity_load, the_move, tune
 from jointctl.identification.excitation import plan_identification
@@ -30,15 +32,75 @@ from jointctl.model.loader import load_robot_model
 
 LOOP_TYPES = {"effort_controllers/JointPositionController": "position",
               "effort_controllers/JointVelocityController": "velocity"}
+#: ros2_controllers' PID, a position loop when it commands a joint's effort on that joint's position.
+PID_TYPE = "pid_controller/PidController"
+
+
+def _pid_loop(entry: dict, joint: str | None) -> tuple[str, dict, bool] | None:
+    """(joint, gains ``{"p", "i", "d"}``, whether the integral acts) of a pid_controller's ROS 2 parameters
+    when it is an effort position loop of ``joint`` (of its only dof when None; see
+    :mod:`jointctl.control.position_loop`), else None. The ``i`` the loop models is 0 when the clamps are
+    both 0 (control_toolbox clamps the term to them: no integral)."""
+    dofs = entry.get("dof_names") or []
+    states = entry.get("reference_and_state_dof_names") or dofs
+    interfaces = entry.get("reference_and_state_interfaces") or []
+    if entry.get("command_interface") != "effort" or not interfaces or interfaces[0] != "position":
+        return None
+    if entry.get("use_external_measured_states") or list(states) != list(dofs):
+        return None
+    if joint is None:
+        if len(dofs) != 1:
+            return None
+        joint = dofs[0]
+    if joint not in dofs:
+        return None
+    raw = (entry.get("gains") or {}).get(joint) or {}
+    acts = bool(float(raw.get("i_clamp_max", 0.0)) or float(raw.get("i_clamp_min", 0.0)))
+    gains = {"p": float(raw.get("p", 0.0)), "i": float(raw.get("i", 0.0)) if acts else 0.0,
+             "d": float(raw.get("d", 0.0))}
+    return joint, gains, bool(gains["i"])
+
+
+def _ros2_loop(scenario, tree, *, controller: str | None, joint: str | None) -> dict:
+    """:func:`configured_loop` of a ROS 2 controller file: its pid_controllers that are effort position loops."""
+    source = str(scenario.controller_file)
+    ros2 = read_ros2_controllers(tree, source, base_dir=Path(source).parent, read=read_yaml)
+    body = {name: dict(entry) for name, entry in ros2.controllers.items()}
+    for dotted, value in scenario.controller_overrides.items():
+        if dotted.split(".", 1)[0] in body:
+            set_dotted(body, dotted, value, source=source)
+    pids = {name: entry for name, entry in body.items() if entry.get("type") == PID_TYPE}
+    if controller is not None:
+        entry = pids.get(controller)
+        found = _pid_loop(entry, joint) if entry is not None else None
+        if found is None:
+            raise ConfigError(f"no pid_controller of that name in {source} commanding a joint's effort on its "
+                              f"position (it has: {', '.join(pids) or 'none'})", field="--controller",
+                              value=controller)
+        name = controller
+    else:
+        loops = [(n, _pid_loop(e, joint)) for n, e in pids.items()]
+        loops = [(n, f) for n, f in loops if f is not None]
+        if not loops:
+            raise ConfigError("the joint needs a pid_controller commanding its effort on its position to follow "
+                              "the excitation", field="--joint", value=joint)
+        name, found = loops[0]
+    joint, gains, integrates = found
+    return {"name": name, "joint": joint, "loop": "position", "gains": gains, "derivative": "error",
+            "droops": not integrates}
 
 
 def configured_loop(scenario, robot, *, controller: str | None = None, joint: str | None = None) -> dict:
     """The joint loop ``controller`` (or the position controller of ``joint``) as the scenario's
     controller file and overrides configure it, read from the file alone: ``name``, ``joint``,
     ``loop`` ("position" or "velocity"), ``gains`` ``{"p", "i", "d"}``, ``derivative`` law and
-    ``droops`` (a position loop whose p alone holds gravity). ConfigError naming the flag otherwise."""
+    ``droops`` (a position loop whose p alone holds gravity). In a ROS 2 file, a pid_controller that
+    commands ``joint``'s effort on its position (``joint``: which dof of one that servos several): the
+    derivative on the error (a plain position reference). ConfigError naming the flag otherwise."""
     source = str(scenario.controller_file)
     tree = read_yaml(scenario.controller_file)
+    if is_ros2_parameters(tree):
+        return _ros2_loop(scenario, tree, controller=controller, joint=joint)
     body = tree
     prefix = ""
     if isinstance(tree, dict) and not all(isinstance(v, dict) and "type" in v for v in tree.values()):

@@ -193,6 +193,19 @@ REMEDIES = {"gravity": ("feedforward", "integral"), "effort": ("lower-bandwidth"
             "kick": ("measurement", "ramp")}
 #: Every remedy, as ``--remedy`` names it.
 REMEDY_NAMES = ("measurement", "ramp", "integral", "feedforward", "lower-bandwidth")
+#: The remedies ros2_controllers' pid_controller (JointLoop's law "control_toolbox") has no parameter for, and why.
+TOOLBOX_LACKS = {
+    "measurement": "pid_controller differentiates the error of a plain position reference; its derivative acts on "
+                   "the measured speed only when each reference carries values_dot, which is the sender's choice, not "
+                   "a parameter of its file (--remedy ramp keeps the kick inside the limit)",
+    "feedforward": "pid_controller adds no model's gravity (its feedforward_gain multiplies values_dot; --remedy "
+                   "integral holds the load)",
+}
+
+
+def remedy_lacking(law: str, remedy: str) -> str | None:
+    """Why the controller of ``law`` (JointLoop's) cannot be given ``remedy``; None when it can."""
+    return TOOLBOX_LACKS.get(remedy) if law == "control_toolbox" else None
 
 
 def ramp_for_kick(loop: JointLoop, step: float, *, share: float = 0.5, start: float = 0.0) -> float:
@@ -238,6 +251,6 @@ def lowest_settling(loop: JointLoop, reference_for, *, overshoot_pct: float, set
     return high, found
 
 
-__all__ = ["INTEGRAL_TIMES", "REMEDIES", "REMEDY_NAMES", "StepDesign", "binding", "damping_for_overshoot",
+__all__ = ["INTEGRAL_TIMES", "REMEDIES", "REMEDY_NAMES", "TOOLBOX_LACKS", "StepDesign", "binding", "damping_for_overshoot",
            "lowest_settling",
-           "ramp_for_kick", "solve_step", "with_integral"]
+           "ramp_for_kick", "remedy_lacking", "solve_step", "with_integral"]

@@ -13,17 +13,31 @@ runs the same loop as :class:`~jointctl.control.joint_controllers.JointPositionC
   gravity at ``q`` (the other joints where they are: :func:`holding_effort` reads it off the robot model over
   the joint's range);
 - the error ``e = r - q``; its rate, by the ``derivative`` law: ``(e - e_last)/h`` ("error"), or ``-q̇``
-  ("measurement"); the integral ``i·h·e`` accumulated and clamped to ``±i_clamp`` (the state itself with
-  ``antiwindup``), the command ``p·e + i_term + d·rate`` clamped to the effort limit, then, with
-  ``feedforward`` gravity, ``τ_hold(q)`` of the measured pose added and the sum clamped again;
+  ("measurement"), or ``ṙ - q̇`` for a reference that carries its rate ``ṙ`` (``reference_rate``: a
+  ros_control reference with a velocity, a pid_controller reference with ``values_dot``); the integral
+  ``i·h·e`` accumulated and clamped to ``[i_clamp_min, i_clamp]`` (the term, or with ``antiwindup`` the
+  state itself: control_toolbox's clamps of ``i·i_error`` and of ``i_error``, the same for a constant
+  ``i``), the command ``p·e + i_term + d·rate`` clamped to the effort limit, then, with ``feedforward``
+  gravity, ``τ_hold(q)`` of the measured pose added and the sum clamped again;
 - the actuator delivers at most the effort limit (as MuJoCo's actuator range and a real drive do);
 - with ``delay_cycles`` the command computed in cycle ``k`` reaches the joint in cycle ``k + delay_cycles``
   (a scenario's ``latency_cycles``: :class:`~jointctl.hardware.imperfect.ImperfectHardware`).
 
+Two controllers run this law (``law``):
+
+- ``"ros_control"``: jointctl's :class:`~jointctl.control.joint_controllers.JointPositionController`
+  (ros_controllers' ``effort_controllers/JointPositionController``): its output clamped to the effort limit;
+  its first rate after a start 0;
+- ``"control_toolbox"``: ros2_controllers' ``pid_controller/PidController`` commanding an effort
+  (:class:`~jointctl.control.pid_controller.PidController`, control_toolbox 3.4.0's PID): no output limit
+  (the actuator clamps what reaches the joint: the same motion, and the effort reported is what the joint
+  gets), and its PID, configured with a last error of 0, differentiates its first error from 0: started off
+  its reference by ``e₀`` it asks the kick ``d·e₀/h`` on its first cycle.
+
 Before the move the loop rests at its start reference: where ``p·e + i_term = τ_hold - τ_ff`` (the P loop short
 of its reference by the droop ``τ_hold/p``; an integral or the feed-forward ``τ_ff`` holding the load at the
 reference). Or it starts where a run starts (``start``): at a position and speed, its controller just started
-(integral 0, the commands on their way 0).
+(integral 0, the commands on their way 0, its first rate the law's).
 The response is read with the figures the robot's check reads (:func:`step_figures`): overshoot [%] of the
 rise to the final value, 2 % settling time, the final value and its distance to the reference (the sag),
 the peak effort and the share of cycles at the effort limit.
@@ -42,6 +56,8 @@ import numpy as np
 SETTLING_BAND = 0.02
 #: A cycle counts as saturated when the command is within this share of the effort limit.
 SATURATION_MARGIN = 0.02
+#: The controllers whose law :class:`JointLoop` runs (see the module docstring).
+LAWS = ("ros_control", "control_toolbox")
 
 
 @dataclass(frozen=True)
@@ -50,7 +66,8 @@ class JointLoop:
     ``period_s`` the control period [s], ``effort_limit`` [N or N·m] (inf: none), ``hold`` the effort [N or
     N·m] holding the joint against gravity at a position [m or rad] (None: no load); the gains ``p`` [N/m or
     N·m/rad], ``i`` [N/(m·s) or N·m/(rad·s)], ``d`` [N·s/m or N·m·s/rad], the integral's clamp ``i_clamp`` [N
-    or N·m] (the integral term stays within ±``i_clamp``; inf: none) and ``antiwindup``;
+    or N·m] (the integral term stays within ±``i_clamp``, or within [``i_clamp_min``, ``i_clamp``] when
+    ``i_clamp_min`` is given; inf: none; 0: no integral) and ``antiwindup``;
     ``derivative`` "error" or "measurement"; ``feedforward`` whether the model's gravity effort is added;
     ``integrator`` how the plant moves over a period: "hold" (exactly, the effort held: a real joint) or
     "euler" (as the simulated robot does: MuJoCo's semi-implicit Euler, damping implicit, ``v⁺ = (v +
@@ -58,7 +75,8 @@ class JointLoop:
     physics steps of ``period_s/substeps`` each (the effort held over them); ``feedforward_hold`` the effort
     [N or N·m] the feed-forward adds at a position when the controller's model differs from the plant (None:
     ``hold``, the model is the plant); ``delay_cycles`` the control cycles a command takes to reach the joint
-    (0: the next physics step)."""
+    (0: the next physics step); ``law`` the controller that runs it, "ros_control" or "control_toolbox" (see
+    the module docstring)."""
 
     mass: float
     damping: float
@@ -76,10 +94,21 @@ class JointLoop:
     substeps: int = 1
     feedforward_hold: Callable[[float], float] | None = None
     delay_cycles: int = 0
+    i_clamp_min: float | None = None
+    law: str = "ros_control"
+
+    def __post_init__(self) -> None:
+        if self.law not in LAWS:
+            raise ValueError(f"law must be one of {', '.join(LAWS)}, not {self.law!r}")
+
+    @property
+    def integral_bounds(self) -> tuple[float, float]:
+        """(lowest, highest) integral term [N or N·m]."""
+        return (-self.i_clamp if self.i_clamp_min is None else self.i_clamp_min), self.i_clamp
 
     def with_gains(self, **gains) -> JointLoop:
-        """This loop with other gains (``p``, ``i``, ``d``, ``i_clamp``, ``antiwindup``, ``derivative``,
-        ``feedforward``)."""
+        """This loop with other gains (``p``, ``i``, ``d``, ``i_clamp``, ``i_clamp_min``, ``antiwindup``,
+        ``derivative``, ``feedforward``)."""
         return replace(self, **gains)
 
     @property
@@ -88,6 +117,8 @@ class JointLoop:
         gains = {"p": self.p, "i": self.i, "d": self.d}
         if self.i:
             gains.update(i_clamp=self.i_clamp, antiwindup=self.antiwindup)
+            if self.i_clamp_min is not None and self.i_clamp_min != -self.i_clamp:
+                gains["i_clamp_min"] = self.i_clamp_min
         return gains
 
     def load(self, q: float) -> float:
@@ -105,9 +136,10 @@ class JointLoop:
         term holds what the feed-forward or the integral (within its clamp) does not, ``p·(r - q) + i_term =
         τ_hold(q) - τ_ff(q)``, solved by fixed-point iteration (it converges where the loop is stable)."""
         q = reference
+        low, high = self.integral_bounds
         for _ in range(200):
             load = self.load(q) - self.feedforward_effort(q)
-            i_term = 0.0 if not self.i else max(-self.i_clamp, min(self.i_clamp, load))
+            i_term = 0.0 if not self.i else max(low, min(high, load))
             held = load - i_term
             if not self.p:
                 return q, i_term
@@ -130,19 +162,23 @@ class JointLoop:
         held = expm(np.array([[0.0, 1.0, 0.0], [0.0, -b / m, 1.0 / m], [0.0, 0.0, 0.0]]) * h)
         return (held[0, 0], held[0, 1], held[1, 0], held[1, 1], held[0, 2], held[1, 2])
 
-    def run(self, reference: np.ndarray, *, until_peak: bool = False,
-            start: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def run(self, reference: np.ndarray, *, until_peak: bool = False, start: tuple[float, float] | None = None,
+            reference_rate: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position, velocity, commanded effort) at each cycle of ``reference`` (one value a period [m or
         rad]), from rest holding ``reference[0]`` (:meth:`rest`), or from ``start`` (position [m or rad], speed
-        [m/s or rad/s]) with the controller just started (integral 0, no derivative on its first cycle, the
-        commands on their way 0: as a session starts). Positions are those measured at the start of each cycle,
-        before its command. ``until_peak``: stop at the first cycle, once the reference has come to its last
+        [m/s or rad/s]) with the controller just started (integral 0, the commands on their way 0: as a session
+        starts; its first rate 0, or with ``law`` "control_toolbox" the first error's difference from 0). With
+        ``reference_rate`` (the reference's rate each cycle [m/s or rad/s]) the derivative acts on ``ṙ - q̇``
+        whatever the ``derivative`` law (a reference that carries its velocity). Positions are those measured
+        at the start of each cycle, before its command; the effort is what reaches the joint (the command within
+        the effort limit). ``until_peak``: stop at the first cycle, once the reference has come to its last
         value, whose velocity no longer moves the joint the way of the move (its first peak)."""
         a00, a01, a10, a11, b0, b1 = self._plant()
         h, p, i, d = self.period_s, self.p, self.i, self.d
         limit, hold_at = self.effort_limit, self.hold
-        clamp, antiwindup = self.i_clamp, self.antiwindup
+        (low, clamp), antiwindup = self.integral_bounds, self.antiwindup
         on_error = self.derivative == "error"
+        rates = None if reference_rate is None else np.asarray(reference_rate, dtype=float)
         feedforward, ff = self.feedforward, self.feedforward_effort
         model_hold = self.feedforward_hold
         own_model = model_hold is None  # the feed-forward is the load itself
@@ -158,7 +194,8 @@ class JointLoop:
             q, v = float(start[0]), float(start[1])
             i_state = held = 0.0
         pending = deque([held] * self.delay_cycles) if self.delay_cycles else None
-        e_last = float(r[0]) - q
+        # The last error a fresh PID differentiates from: ros_control's first rate is 0, control_toolbox's e₀/h.
+        e_last = 0.0 if start is not None and self.law == "control_toolbox" else float(r[0]) - q
         n = r.size
         qs, vs, us = np.empty(n), np.empty(n), np.empty(n)
         direction = 1.0 if r[-1] >= r[0] else -1.0
@@ -170,13 +207,16 @@ class JointLoop:
             if k > arrived and v * direction <= 0.0:
                 return qs[:k], vs[:k], us[:k]
             e = r[k] - q
-            rate = (e - e_last) / h if on_error else -v
-            e_last = e
+            if rates is not None:
+                rate = rates[k] - v
+            else:
+                rate = (e - e_last) / h if on_error else -v
+                e_last = e
             if i:
                 i_state += i * h * e
                 if antiwindup:
-                    i_state = clamp if i_state > clamp else -clamp if i_state < -clamp else i_state
-                i_term = clamp if i_state > clamp else -clamp if i_state < -clamp else i_state
+                    i_state = clamp if i_state > clamp else low if i_state < low else i_state
+                i_term = clamp if i_state > clamp else low if i_state < low else i_state
             else:
                 i_term = 0.0
             u = p * e + i_term + d * rate
@@ -300,5 +340,5 @@ def step_figures(t: np.ndarray, q: np.ndarray, reference: np.ndarray, effort: np
     return StepFigures(overshoot, settling, start, final, float(reference[-1]) - final, peak, saturated)
 
 
-__all__ = ["JointLoop", "SATURATION_MARGIN", "SETTLING_BAND", "StepFigures", "holding_effort", "reference_step",
+__all__ = ["JointLoop", "LAWS", "SATURATION_MARGIN", "SETTLING_BAND", "StepFigures", "holding_effort", "reference_step",
            "step_figures"]

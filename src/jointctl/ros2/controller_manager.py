@@ -14,6 +14,10 @@ Under ``/controller_manager`` (controller_manager_msgs/srv), what ``ros2 control
   (STRICT) or as much as can be (BEST_EFFORT), as ros2_control does; answered once the loop has done it;
 - ``unload_controller``: refused for an active controller (as ros2_control refuses it), else ok.
 
+Its parameter ``update_rate`` [Hz] (an integer, as ros2_control declares it) is the loop's rate, which a ROS 2
+client reads as a ros2_control robot's (jointctl's tools with ``--hardware ros2`` do); read-only: jointctl's loop
+keeps the rate it started with.
+
 A refusal is logged with its reason. The loop's state is touched only in the loop thread: requests wait for it.
 """
 
@@ -27,6 +31,7 @@ from controller_manager_msgs.srv import (ConfigureController, ListControllers, L
                                          ListHardwareComponents, ListHardwareInterfaces, LoadController,
                                          SwitchController, UnloadController)
 from lifecycle_msgs.msg import State
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
@@ -44,6 +49,8 @@ class ControllerManagerServices:
         self.manager = session.manager
         self._requests: queue.SimpleQueue = queue.SimpleQueue()
         session.loop.add_input(self._apply_requests)
+        node.declare_parameter("update_rate", int(round(1.0 / session.loop.period_s)),
+                               ParameterDescriptor(read_only=True, description="the control loop's rate [Hz]"))
         group = ReentrantCallbackGroup()
         for kind, name, callback in (
                 (ListControllers, "list_controllers", self._list_controllers),

@@ -352,14 +352,22 @@ class ServedRos2Hardware(HardwareInterface):
         return {k: float(found.get(name, 0.0)) for k, name in zip(("p", "i", "d"), names)}
 
     def set_gains(self, controller: str, gains: dict) -> dict:
-        """Set the loop's ``p``, ``i``, ``d`` as the controller's parameters; the gains it then holds."""
+        """Set the loop's ``p``, ``i``, ``d`` as the controller's parameters, and any other of its gain
+        parameters ``gains`` names (``i_clamp_max``, ``i_clamp_min``, ``antiwindup``: :data:`GAIN_NAMES`); the
+        gains ``{"p", "i", "d"}`` it then holds."""
         self.joint_of(controller)
         if not self.loop.has_gains:
             raise ConfigError("a forward command controller has no gains (the hardware servos the joint)",
                               field="--controller", value=controller)
+        unknown = sorted(set(gains) - set(GAIN_NAMES))
+        if unknown:
+            raise ConfigError(f"pid_controller's gains are {', '.join(GAIN_NAMES)}", field="gains", value=unknown[0])
         self._gains_set = True
-        self.graph.set_parameters(self.controller_node, {f"gains.{self.loop.command_dof}.{k}": float(gains[k])
-                                                         for k in ("p", "i", "d")})
+        values = {k: (bool(v) if isinstance(v, bool) else float(v)) for k, v in gains.items()}
+        # The clamps before i: the controller never runs an integral under the clamps it is leaving.
+        order = sorted(values, key=lambda k: k in ("p", "i", "d"))
+        self.graph.set_parameters(self.controller_node, {f"gains.{self.loop.command_dof}.{k}": values[k]
+                                                         for k in order})
         answered = self.gains(controller)
         if any(abs(answered[k] - float(gains[k])) > 1e-9 * max(1.0, abs(gains[k])) for k in ("p", "i", "d")):
             raise JointCtlError("the controller kept other gains than those set", field=self.controller_node,

@@ -57,10 +57,11 @@ from scipy.optimize import brentq
 from jointctl.errors import ConfigError
 from jointctl.identification.autotune import autotune, check_after_s, scenario_move, settling_time
 from jointctl.identification.frequency_response import LoopModel
+from jointctl.identification.gain_files import fields_of, setting_overrides, tuned_document
 from jointctl.identification.plant_fit import IdentificationError
 from jointctl.identification.step_design import (INTEGRAL_TIMES, OVERSHOOT_TOLERANCE_PCT, REMEDIES,
                                                  SATURATION_SHARE, SETTLING_TOLERANCE, overshoot_at, ramp_for_kick,
-                                                 with_integral)
+                                                 remedy_lacking, with_integral)
 from jointctl.identification.step_loop import (SETTLING_BAND, JointLoop, StepFigures, holding_effort,
                                                reference_step, step_figures)
 from jointctl.model.dynamics import RobotDynamics
@@ -434,7 +435,7 @@ def robust_autotune(scenario_for: Callable, controller_name: str, ranges: Iterab
         return JointLoop(plants[0].inertia, plants[0].damping, scenario.loop_period_s, limit, None,
                          p=nominal["gains"]["p"], d=nominal["gains"]["d"], derivative=law,
                          feedforward=own_feedforward or "feedforward" in remedy_set, integrator="euler",
-                         feedforward_hold=nominal_hold)
+                         feedforward_hold=nominal_hold, law=nominal["law"])
 
     def design_with(remedy_set: Sequence[str]) -> FamilyDesign:
         found = design_family(base_loop(remedy_set), plants, start, step, overshoot_pct=target_overshoot,
@@ -543,7 +544,7 @@ def _design_report(design: FamilyDesign, plants: Sequence[Plant]) -> dict:
              "final_error": f.final_error, "peak_effort": f.peak_effort, "saturated_share": f.saturated_share,
              "binds": list(b)} for plant, f, b in zip(plants, design.figures, design.binds)]
     return {"gains": {k: (bool(v) if isinstance(v, bool) else float(v)) for k, v in loop.gains.items()},
-            "derivative": loop.derivative, "feedforward": ["gravity"] if loop.feedforward else [],
+            "law": loop.law, "derivative": loop.derivative, "feedforward": ["gravity"] if loop.feedforward else [],
             "ramp_s": design.ramp_s, "settling_s": design.settling_s, "meets_spec_on_model": design.met,
             "model": rows, "model_worst": _worst_rows(rows)}
 
@@ -589,7 +590,7 @@ def _alternatives(result: dict, binds: dict, design_with, check, plants: Sequenc
     wanted: list[str] = []
     for bind in binds:
         for remedy in REMEDIES.get("effort" if bind == "spec" else bind, ()):
-            if remedy in applied or remedy in wanted:
+            if remedy in applied or remedy in wanted or remedy_lacking(robust["law"], remedy):
                 continue
             if remedy == "measurement" and robust["derivative"] == "measurement":
                 continue
@@ -646,12 +647,7 @@ def check_on_robot(target: str, controllers: str | None, overrides: Sequence[str
 
     loop = design.loop
     after = check_after_s(design.settling_s)
-    name = f"controllers.{controller_name}"
-    common = [*overrides, *(f"{name}.pid.{k}={v!r}" for k, v in loop.gains.items())]
-    if loop.derivative == "measurement":
-        common.append(f"{name}.derivative=measurement")
-    if loop.feedforward:
-        common.append(f"{name}.feedforward.gravity=true")
+    common = [*overrides, *setting_overrides(controller_name, loop_fields(loop, joint))]
     tasks, holds = [], []
     for k, plant in enumerate(plants):
         closed = member(loop, plant)
@@ -696,6 +692,20 @@ def check_on_robot(target: str, controllers: str | None, overrides: Sequence[str
         for r, b in zip(ran, family_binds(figures, loop.d, step, overshoot_pct, design.settling_s)):
             r["binds"] = list(b)
     return out
+
+
+def loop_fields(loop: JointLoop, joint: str) -> dict:
+    """The controller file's fields that run ``loop``'s gains, derivative law and feed-forward on ``joint``
+    (:func:`~jointctl.identification.gain_files.fields_of`: ros_control's names, or pid_controller's)."""
+    return fields_of(loop.gains, law=loop.law, joint=joint, derivative=loop.derivative, feedforward=loop.feedforward)
+
+
+def report_fields(result: dict) -> dict:
+    """:func:`loop_fields` of a result's robust design (its report's ``gains``, ``law``, ``derivative``,
+    ``feedforward``)."""
+    robust = result["robust"]
+    return fields_of(robust["gains"], law=robust.get("law", "ros_control"), joint=result["joint"],
+                     derivative=robust["derivative"], feedforward=bool(robust["feedforward"]))
 
 
 def robust_warnings(result: dict) -> list[str]:
@@ -750,46 +760,38 @@ def robust_warnings(result: dict) -> list[str]:
     return lines
 
 
-def write_robust(out_dir, scenario: Scenario, controller_name: str, result: dict) -> Path:
+def write_robust(out_dir, scenario: Scenario, controller_name: str, result: dict, *,
+                 document: tuple[str, dict] | None = None) -> Path:
     """The scenario's controller file with the robust design (as autotune writes its design: the gains, and the
-    derivative law and gravity feed-forward when a remedy changed them) and ``metrics.json`` into ``out_dir``;
-    the YAML's path (also ``result["yaml"]``)."""
-    import copy
-
+    derivative law and gravity feed-forward when a remedy changed them; a pid_controller's as its ROS 2
+    parameters) and ``metrics.json`` into ``out_dir``; the YAML's path (also ``result["yaml"]``). ``document``:
+    (file name, tree) to write instead, the design's fields already in (a served robot's own parameters)."""
     import yaml
 
-    from jointctl.control.manager import read_yaml, set_dotted
+    from jointctl.control.manager import read_yaml
     from jointctl.recording.metrics_file import write_metrics
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    source = Path(scenario.controller_file)
-    document = copy.deepcopy(read_yaml(source))
-    body = next(iter(document.values())) if len(document) == 1 and controller_name not in document else document
-    if controller_name not in body:
-        raise ConfigError("the controller is not in its file", source=str(source), field=controller_name)
-    for key, value in scenario.controller_overrides.items():  # what --set changed of it runs in the design too
-        if key.startswith(f"{controller_name}."):
-            set_dotted(body[controller_name], key[len(controller_name) + 1:], value, source="--set")
     robust = result["robust"]
-    entry = body[controller_name]
-    entry.setdefault("pid", {}).update({k: v if isinstance(v, bool) else round(v, 6)
-                                        for k, v in robust["gains"].items()})
-    if robust["derivative"] == "measurement":
-        entry["derivative"] = "measurement"
-    if robust["feedforward"]:
-        entry.setdefault("feedforward", {})["gravity"] = True
+    if document is None:
+        source = Path(scenario.controller_file)
+        # What --set changed of the controller runs in the design too.
+        name, tuned = source.name, tuned_document(read_yaml(source), controller_name, report_fields(result),
+                                                  str(source), overrides=scenario.controller_overrides)
+    else:
+        name, tuned = document
     ranges = ", ".join(f"{r['field']} {r['low']:g} to {r['high']:g}" for r in result["family"]["ranges"])
     ramp = f" along a ramp of {robust['ramp_s']:g} s" if robust["ramp_s"] else ""
-    path = out / source.name
-    path.write_text(f"# {source.name} with {controller_name} tuned by jointctl autotune --robust for a step of "
+    path = out / name
+    path.write_text(f"# {name} with {controller_name} tuned by jointctl autotune --robust for a step of "
                     f"{result['spec']['step']:g}{ramp} on every plant of {ranges}.\n"
-                    + yaml.safe_dump(document, sort_keys=False))
+                    + yaml.safe_dump(tuned, sort_keys=False))
     result["yaml"] = str(path)
     write_metrics(out, result)
     return path
 
 
 __all__ = ["FamilyDesign", "Plant", "Range", "check_limits", "check_on_robot", "design_family", "family",
-           "family_binds", "family_damping", "integral_hold_s", "member", "parse_range", "plant_binds",
-           "robust_autotune", "robust_warnings", "solve_family", "write_robust"]
+           "family_binds", "family_damping", "integral_hold_s", "loop_fields", "member", "parse_range", "plant_binds",
+           "report_fields", "robust_autotune", "robust_warnings", "solve_family", "write_robust"]

@@ -18,6 +18,7 @@ from typing import Any
 
 from jointctl.control.forward_command_controller import ForwardCommandController
 from jointctl.control.pid_controller import PidController
+from jointctl.control.position_loop import position_loop
 from jointctl.errors import ConfigError
 from jointctl.trajectory.joint_trajectory_controller import JointTrajectoryController
 from jointctl.scenario.analyses.arm import analyse_arm_pose
@@ -33,7 +34,8 @@ from jointctl.scenario.analyses.trajectory import analyse_trajectory_tracking
 from jointctl.scenario.session import Session
 from jointctl.recording.trace import Trace
 
-#: ros2_controllers' types, which the analyses' loop models do not describe.
+#: ros2_controllers' types, which the analyses' loop models do not describe (but a pid_controller's dof that is an
+#: effort position loop: :func:`~jointctl.control.position_loop.position_loop`).
 ROS2_TYPES = (PidController, ForwardCommandController, JointTrajectoryController)
 
 Analysis = Callable[[Session, Trace, Path, dict[str, Any]], dict[str, Any]]
@@ -66,11 +68,11 @@ def check_analysis(session: Session) -> Analysis | None:
     if names_a_joint:
         joint = analysed_joint(session, spec)
         controller = session.manager.commanding(joint)
-        if isinstance(controller, ROS2_TYPES):
-            raise ConfigError(f"the analyses model ros_control's joint controllers; {joint} is commanded by "
-                              f"{controller.name!r}, a ROS 2 type (run without an analysis: --set analysis=null, "
-                              "and read the trace)", source=session.scenario.source, field="analysis.joint",
-                              value=joint)
+        if isinstance(controller, ROS2_TYPES) and position_loop(controller, joint) is None:
+            raise ConfigError(f"the analyses model ros_control's joint controllers and pid_controller's effort "
+                              f"position loops; {joint} is commanded by {controller.name!r}, a ROS 2 type that is "
+                              "neither (run without an analysis: --set analysis=null, and read the trace)",
+                              source=session.scenario.source, field="analysis.joint", value=joint)
     check_spec(session, spec)
 
     def analyse_and_warn(session: Session, trace: Trace, out: Path, params: dict[str, Any]) -> dict[str, Any]:

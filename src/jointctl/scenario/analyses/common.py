@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from jointctl.control.position_loop import position_loop
 from jointctl.errors import ConfigError
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.session import Session
@@ -53,7 +54,8 @@ def joint_plant(session: Session, joint: str) -> JointPlant:
     k = dynamics.joint_names.index(joint)
     mass = float(dynamics.mass_matrix()[k, k])
     gravity = float(np.dot(session.scenario.gravity_m_s2, dynamics.joint_axis(joint)))
-    gains = session.manager.commanding(joint).pid.gains
+    controller = session.manager.commanding(joint)
+    gains = (position_loop(controller, joint) or controller).pid.gains
     return JointPlant(mass, float(dynamics.damping[k]), gravity, gains.p, gains.d)
 
 

@@ -8,19 +8,21 @@ The loop is :class:`~jointctl.metrics.step_loop.JointLoop`, the one autotune des
   damping, its effort limit, and the effort holding it against gravity over its range with the other joints where
   they end (:func:`~jointctl.metrics.step_loop.holding_effort`);
 - its controller: the gains, the derivative law (on the error: the kick ``d·Δr/h`` on a step's first cycle, clamped
-  with the rest at the effort limit; or on the measurement), the integral and its clamp, and the gravity
-  feed-forward, computed from the controllers' model (which a payload does not change);
+  with the rest at the effort limit; or on the measurement), the integral and its clamps, and the gravity
+  feed-forward, computed from the controllers' model (which a payload does not change); ros_controllers' law, or
+  ros2_controllers' pid_controller's (control_toolbox's PID: its first cycle differentiates the error from 0,
+  :mod:`jointctl.control.position_loop`);
 - the scenario's ``latency_cycles`` (a command reaches the joint that many cycles late) and, on the simulated
   robot, MuJoCo's own integration: semi-implicit Euler with the damping implicit, ``timestep_s`` steps a control
   period.
 
 It starts where the run starts (the scenario's initial position, at rest, the controller just started: integral 0,
-nothing on its way) and follows the command source's value at every control period of the run, so that its
+nothing on its way, its first rate the law's) and follows the command source's value at every control period of the run, so that its
 response is the run's, to the model's accuracy: 5e-11 m on the 1-DOF robot.
 
 Not modelled: the other joints' motion (held where they end; how their loops move the joint's own is the step
 theory's linear loops'), Coulomb friction (``model.JOINT.friction``), the joint's range limits, sensor noise, the
-wrapped error of a continuous joint, an asymmetric integral clamp (taken as ±``i_clamp_max``).
+wrapped error of a continuous joint.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from jointctl.control.position_loop import law_of
 from jointctl.metrics.step_loop import JointLoop, StepFigures, holding_effort, step_figures
 from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.session import Session
@@ -88,8 +91,9 @@ class StepModel:
 
 
 def joint_loop(session: Session, joint: str, controller, pose: dict) -> JointLoop:
-    """The :class:`~jointctl.metrics.step_loop.JointLoop` of ``joint`` under its position ``controller`` in
-    ``session``'s robot, the other joints at ``pose`` (name -> position [m or rad]); see the module docstring."""
+    """The :class:`~jointctl.metrics.step_loop.JointLoop` of ``joint`` under its position ``controller`` (as
+    :func:`~jointctl.control.position_loop.position_loop` gives it) in ``session``'s robot, the other joints at
+    ``pose`` (name -> position [m or rad]); see the module docstring."""
     scenario = session.scenario
     names = list(session.hardware.joint_names)
     dynamics = RobotDynamics(session.plant, scenario.gravity_m_s2, joints=names)
@@ -104,7 +108,8 @@ def joint_loop(session: Session, joint: str, controller, pose: dict) -> JointLoo
     return JointLoop(
         mass=float(dynamics.mass_matrix()[k, k]), damping=float(dynamics.damping[k]), period_s=scenario.loop_period_s,
         effort_limit=controller.effort_limit, hold=holding_effort(session.plant, joint, pose, scenario.gravity_m_s2),
-        p=gains.p, i=gains.i, d=gains.d, i_clamp=gains.i_clamp_max, antiwindup=gains.antiwindup,
+        p=gains.p, i=gains.i, d=gains.d, i_clamp=gains.i_clamp_max, i_clamp_min=gains.i_clamp_min,
+        antiwindup=gains.antiwindup, law=law_of(controller),
         derivative=controller.derivative, feedforward=feedforward, feedforward_hold=model_hold,
         integrator="euler" if simulated else "hold",
         substeps=max(1, int(round(scenario.loop_period_s / scenario.timestep_s))) if simulated else 1,

@@ -73,8 +73,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import brentq
 
-from jointctl.control.joint_controllers import (DERIVATIVE_ERROR, JointPositionController,
-                                                JointVelocityController)
+from jointctl.control.joint_controllers import DERIVATIVE_ERROR, JointVelocityController
+from jointctl.control.position_loop import position_loop
 from jointctl.hardware.interface import EFFORT
 from jointctl.metrics.expectations import DAMPING_RATIO_MARGIN, NATURAL_FREQUENCY_MARGIN, saturation_share
 from jointctl.metrics.linear_loops import LinearStep, linear_step
@@ -140,8 +140,11 @@ class StepTheory:
 
 
 def loop_controller(session: Session, joint: str):
-    """The running controller that writes ``joint``'s effort, or None."""
-    return next((c for c in session.manager.active if (joint, EFFORT) in c.claimed_interfaces()), None)
+    """The running controller that writes ``joint``'s effort, or None; a position loop as
+    :func:`~jointctl.control.position_loop.position_loop` gives it (a pid_controller's dof as a joint position
+    controller)."""
+    found = next((c for c in session.manager.active if (joint, EFFORT) in c.claimed_interfaces()), None)
+    return position_loop(found, joint) or found
 
 
 def final_pose(session: Session, trace: Trace) -> np.ndarray:
@@ -166,7 +169,7 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float,
     share_end = saturation_share(effort[-n_tail:], limit)
     theory.details["saturated_share_after_step"] = share_after
     controller = loop_controller(session, joint)
-    if not isinstance(controller, JointPositionController):
+    if position_loop(controller, joint) is None:
         what = ("a velocity loop" if isinstance(controller, JointVelocityController)
                 else "no loop" if controller is None else type(controller).__name__)
         theory.skip(EXPECTED, f"{joint} is driven by {what}, not a position loop")
@@ -425,7 +428,7 @@ def _loops(session: Session, dynamics: RobotDynamics, pose: np.ndarray,
     kp, kd = np.zeros(n), dynamics.damping.copy()
     for i, name in enumerate(names):
         controller = loop_controller(session, name)
-        if isinstance(controller, JointPositionController):
+        if position_loop(controller, name) is not None:
             kp[i] = controller.pid.gains.p
             kd[i] += controller.pid.gains.d
             if "gravity" in controller.feedforward_terms:
