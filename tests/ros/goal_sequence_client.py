@@ -64,6 +64,9 @@ def main() -> None:
         goal.trajectory = JointTrajectory(joint_names=spec["joint_names"])
         for t, q in spec["points"]:
             goal.trajectory.points.append(JointTrajectoryPoint(positions=q, time_from_start=rospy.Duration(t)))
+        for name, position in spec.get("path_tolerance", {}).items():  # FollowJointTrajectory only
+            from control_msgs.msg import JointTolerance
+            goal.path_tolerance.append(JointTolerance(name=name, position=position))
         if spec.get("stamp_age_s"):
             goal.trajectory.header.stamp = rospy.Time.now() - rospy.Duration(spec["stamp_age_s"])
         client.send_goal(goal, done_cb=done_callback(k), feedback_cb=feedback_callback(k))

@@ -129,6 +129,19 @@ def test_bad_goals_are_rejected_on_arrival_without_an_abort_first(ros_env, serve
     assert ABORT_BEFORE_REJECT not in out
 
 
+def test_a_follow_goals_own_path_tolerance_is_honoured(ros_env, serve):
+    """control_msgs: a goal's path_tolerance replaces the controller's (none here). 1 µm is below any real move's
+    tracking error: ABORTED with PATH_TOLERANCE_VIOLATED; the same goal without it succeeds."""
+    serve("one_dof", "--controllers", "trajectory", wait_topic=ONE_DOF_STATES)
+    server = "/one_DOF_robot/joint1_trajectory_controller/follow_joint_trajectory"
+    move = {"joint_names": ["joint1"], "points": [[1.0, [-0.4]]]}
+    plain, = send_goals(ros_env, "follow", server, [move])
+    assert plain["state"] == "SUCCEEDED"
+    strict, = send_goals(ros_env, "follow", server, [dict(move, points=[[1.0, [-0.5]]],
+                                                          path_tolerance={"joint1": 1e-6})])
+    assert strict["state"] == "ABORTED" and strict["result"]["error_code"] == -4, strict
+
+
 def test_a_cancel_of_the_running_goal_stops_it_and_the_next_goal_runs(ros_env, serve, probe):
     serve("one_dof", "--controllers", "trajectory", wait_topic=ONE_DOF_STATES)
     long = {"joint_names": ["joint1"], "points": [[0.0, [-0.5]], [6.0, [-0.1]]], "cancel_at_s": 1.5}

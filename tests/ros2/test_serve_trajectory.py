@@ -52,3 +52,14 @@ def test_a_goal_beyond_the_joint_limit_is_rejected_and_nothing_moves(trajectory_
     wait_until(lambda: "rejected a goal (INVALID_GOAL -1)" in trajectory_robot.log.read_text(),
                "the rejection's reason and JTC's error code in the served node's log")
     assert trajectory_robot.rest("joint1")["position"] == pytest.approx(before, abs=GOAL_TOLERANCE_M)
+
+
+def test_the_goals_own_path_tolerance_aborts_with_jtcs_error_code(trajectory_robot):
+    """A path tolerance of 1 µm in the goal (the controller has none): the tracking error of any real move is
+    larger, so the goal ends aborted with PATH_TOLERANCE_VIOLATED (-4) and the joint is brought to rest."""
+    env = trajectory_robot.env
+    strict = ("{trajectory: {joint_names: [joint1], points: [{positions: [-0.5], time_from_start: {sec: 1}}]}, "
+              "path_tolerance: [{name: joint1, position: 0.000001}]}")
+    out = ros2(env, "action", "send_goal", ACTION, "control_msgs/action/FollowJointTrajectory", strict)
+    assert "ABORTED" in out.stdout and "error_code: -4" in out.stdout, out.stdout + out.stderr
+    assert trajectory_robot.rest("joint1")["velocity"] == pytest.approx(0.0, abs=1e-3)

@@ -9,7 +9,8 @@ served so far). Two goal semantics, side by side (docs/ros.md):
   joint_trajectory_controller. A goal is validated on arrival against the current desired state
   and REJECTED with the validation text if it is bad (nothing moves); a new goal replaces the
   running one with a splice (the old one ends PREEMPTED); ``header.stamp`` is honoured (a zero
-  stamp means "now").
+  stamp means "now"); the goal's own position tolerances and goal time are honoured where it gives
+  them (control_msgs: 0 keeps the controller's, -1 takes the check away).
 - :class:`QueuedTrajectoryActionServer`, for the chapter's servers (``traj``, ``arm7dof_traj``):
   actionlib's SimpleActionServer with an execute callback, as the book's
   ``example_trajectory_action_server`` and ``arm7dof_traj_as`` are. Goals run one after another in
@@ -35,7 +36,7 @@ import rospy
 from actionlib_msgs.msg import GoalStatus as RosGoalStatus
 from trajectory_msgs.msg import JointTrajectoryPoint as RosPoint
 
-from jointctl.ros.conversions import trajectory_from_ros
+from jointctl.ros.conversions import tolerances_from_ros, trajectory_from_ros
 from jointctl.trajectory.errors import InvalidTrajectory, TrajectoryErrorCode
 from jointctl.trajectory.executor import GoalResult, GoalStatus, TrajectoryExecutor, TrajectoryFeedback
 
@@ -113,11 +114,12 @@ class TrajectoryActionServer:
         goal = gh.get_goal()
         accepted = threading.Event()
         trajectory = trajectory_from_ros(goal.trajectory, self.clock.ros_time_at_loop_zero())
+        tolerances = tolerances_from_ros(goal) if self.kind == "follow_joint_trajectory" else None
         try:
             handle = self.executor.submit(
                 trajectory, now_s=self.clock.loop_now(),
                 on_feedback=lambda fb: gh.publish_feedback(self.messages.feedback(fb)),
-                on_done=lambda result: self._on_done(gh, result, accepted))
+                on_done=lambda result: self._on_done(gh, result, accepted), tolerances=tolerances)
         except InvalidTrajectory as exc:
             gh.set_rejected(self.messages.result(exc.error_code, str(exc)), str(exc))
             return

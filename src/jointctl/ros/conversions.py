@@ -9,6 +9,7 @@ from trajectory_msgs.msg import JointTrajectory as RosJointTrajectory
 from trajectory_msgs.msg import JointTrajectoryPoint as RosJointTrajectoryPoint
 
 from jointctl.control.joint_state_controller import JointStateSample
+from jointctl.trajectory.goals import GoalTolerances
 from jointctl.trajectory.messages import JointTrajectory, JointTrajectoryPoint
 
 
@@ -26,6 +27,14 @@ def trajectory_from_ros(msg: RosJointTrajectory, stamp_offset_s: float = 0.0) ->
         stamp_s=stamp - stamp_offset_s if stamp > 0 else 0.0,
         frame_id=msg.header.frame_id,
     )
+
+
+def tolerances_from_ros(goal) -> GoalTolerances:
+    """A FollowJointTrajectory goal's own position tolerances and goal time (control_msgs: 0 keeps the controller's,
+    -1 takes the check away). Velocity and acceleration tolerances are not checked by jointctl's executor."""
+    return GoalTolerances(path={t.name: t.position for t in goal.path_tolerance},
+                          goal={t.name: t.position for t in goal.goal_tolerance},
+                          goal_time_s=goal.goal_time_tolerance.to_sec())
 
 
 def trajectory_to_ros(trajectory: JointTrajectory) -> RosJointTrajectory:

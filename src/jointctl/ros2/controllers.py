@@ -26,7 +26,9 @@ relative to it (``~/reference`` is ``/<controller>/reference``) and the joint st
   and velocities, at ``state_rate_hz``). As JTC does, a goal that is
   not valid is rejected when it arrives (its reason, with the error code JTC's result would carry, logged on
   /rosout); one that strays beyond its tolerances ends aborted with PATH_TOLERANCE_VIOLATED (-4) or
-  GOAL_TOLERANCE_VIOLATED (-5), a cancel decelerates the joints to rest and ends canceled.
+  GOAL_TOLERANCE_VIOLATED (-5) (the controller's tolerances, or the goal's own position tolerances and goal time
+  where it gives them: 0 keeps the controller's, -1 takes the check away), a cancel decelerates the joints to rest
+  and ends canceled.
 
 Callbacks run on the executor's threads; they hand values to the controllers' doors (single-slot, read by the
 loop at the start of its next cycle) and never touch the loop's state otherwise.
@@ -55,7 +57,7 @@ from jointctl.control.pid_controller import GAIN_NUMBERS, GAIN_SWITCHES, PidCont
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.control.pid import PidGains
 from jointctl.errors import InvalidCommand, JointCtlError
-from jointctl.ros2.conversions import joint_state_to_ros2, trajectory_from_ros2
+from jointctl.ros2.conversions import joint_state_to_ros2, tolerances_from_ros2, trajectory_from_ros2
 from jointctl.trajectory.errors import InvalidTrajectory
 from jointctl.trajectory.executor import GoalResult, GoalStatus, TrajectoryExecutor, TrajectoryFeedback
 
@@ -307,6 +309,7 @@ class TrajectoryFace(_Face):
             return GoalResponse.REJECT
         try:
             self.executor.check_goal_shape(self._trajectory(goal.trajectory))
+            self.executor.tolerances_held_to(tolerances_from_ros2(goal))
         except InvalidTrajectory as exc:
             self.node.get_logger().error(f"rejected a goal ({exc.error_code.name} {int(exc.error_code)}): {exc}")
             return GoalResponse.REJECT
@@ -326,7 +329,8 @@ class TrajectoryFace(_Face):
         try:
             handle = self.executor.submit(self._trajectory(goal_handle.request.trajectory),
                                           now_s=self.clock.loop_now(),
-                                          on_feedback=lambda fb: goal_handle.publish_feedback(self._feedback(fb)))
+                                          on_feedback=lambda fb: goal_handle.publish_feedback(self._feedback(fb)),
+                                          tolerances=tolerances_from_ros2(goal_handle.request))
         except InvalidTrajectory as exc:  # valid on arrival, not from where the robot is when it starts
             result.error_code, result.error_string = int(exc.error_code), str(exc)
             goal_handle.abort()

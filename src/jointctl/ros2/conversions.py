@@ -9,6 +9,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory as Ros2JointTrajectory
 
 from jointctl.control.joint_state_controller import JointStateSample
+from jointctl.trajectory.goals import GoalTolerances
 from jointctl.trajectory.messages import JointTrajectory, JointTrajectoryPoint
 
 
@@ -47,4 +48,12 @@ def trajectory_from_ros2(msg: Ros2JointTrajectory, stamp_offset_s: float = 0.0) 
         frame_id=msg.header.frame_id)
 
 
-__all__ = ["joint_state_to_ros2", "seconds_of", "time_msg", "trajectory_from_ros2"]
+def tolerances_from_ros2(goal) -> GoalTolerances:
+    """A FollowJointTrajectory goal's own position tolerances and goal time (control_msgs: 0 keeps the controller's,
+    -1 takes the check away). Velocity and acceleration tolerances are not checked by jointctl's executor."""
+    return GoalTolerances(path={t.name: t.position for t in goal.path_tolerance},
+                          goal={t.name: t.position for t in goal.goal_tolerance},
+                          goal_time_s=seconds_of(goal.goal_time_tolerance))
+
+
+__all__ = ["joint_state_to_ros2", "seconds_of", "time_msg", "tolerances_from_ros2", "trajectory_from_ros2"]

@@ -48,7 +48,8 @@ from jointctl.errors import ConfigError, InvalidCommand
 from jointctl.hardware.interface import POSITION, HardwareInterface
 from jointctl.model.robot_model import RobotModel
 from jointctl.trajectory.errors import InvalidTrajectory, TrajectoryErrorCode
-from jointctl.trajectory.goals import GoalHandle, GoalQueue, GoalResult, GoalStatus, TrajectoryFeedback
+from jointctl.trajectory.goals import (GoalHandle, GoalQueue, GoalResult, GoalStatus, GoalTolerances,
+                                       TrajectoryFeedback)
 from jointctl.trajectory.messages import JointSpec, JointTrajectory
 from jointctl.trajectory.plan import BLOCK_CYCLES, INTERPOLATIONS, Plan, Row, interleave
 from jointctl.trajectory.timing import (PATH_MAX_ACCELERATION, PATH_MAX_JERK, PATH_START_S,
@@ -56,8 +57,8 @@ from jointctl.trajectory.timing import (PATH_MAX_ACCELERATION, PATH_MAX_JERK, PA
 from jointctl.trajectory.tolerances import goal_reached, path_violation, worst_joint
 from jointctl.trajectory.validation import ValidatedTrajectory, joint_specs_from_model, validate_trajectory
 
-__all__ = ["BLOCK_CYCLES", "INTERPOLATIONS", "GoalHandle", "GoalResult", "GoalStatus", "TrajectoryExecutor",
-           "TrajectoryFeedback"]
+__all__ = ["BLOCK_CYCLES", "INTERPOLATIONS", "GoalHandle", "GoalResult", "GoalStatus", "GoalTolerances",
+           "TrajectoryExecutor", "TrajectoryFeedback"]
 
 
 #: A goal handed whole to the hardware keeps its own times when it starts less than this late [s]
@@ -109,7 +110,6 @@ class TrajectoryExecutor(Controller):
         self.start_tolerance = params.number("start_tolerance", 1e-3, minimum=0)
         self.check_velocity_limits = params.boolean("check_velocity_limits", True)
         self.min_points = int(params.number("min_points", 1, positive=True))
-        self._checks_path = any(tol > 0 for tol in self.path_tolerance)
         params.reject_unknown({"type"})
         self.goals = GoalQueue()
         self.latest_feedback: TrajectoryFeedback | None = None
@@ -238,16 +238,19 @@ class TrajectoryExecutor(Controller):
     # -- doors (any thread) ------------------------------------------------------------------
     def submit(self, trajectory: JointTrajectory, *, now_s: float | None = None,
                on_feedback: Callable[[TrajectoryFeedback], None] | None = None,
-               on_done: Callable[[GoalResult], None] | None = None) -> GoalHandle:
+               on_done: Callable[[GoalResult], None] | None = None,
+               tolerances: GoalTolerances | None = None) -> GoalHandle:
         """Validate ``trajectory`` against the current desired state and queue it.
 
         Raises :class:`InvalidTrajectory` (nothing moves) when it is refused; the
         handle then never becomes active. ``now_s`` is the loop time (default: the
-        time of the last cycle).
+        time of the last cycle). ``tolerances``: the goal's own (control_msgs'
+        semantics, :class:`GoalTolerances`), else the controller's.
         """
         handle = self.goals.new(trajectory, on_feedback, on_done)
         now = self._last_time_s if now_s is None else now_s
         try:
+            handle.path_tolerance, handle.goal_tolerance, handle.goal_time_s = self.tolerances_held_to(tolerances)
             self._check_running_and_points(trajectory)
             handle.validated = validate_trajectory(
                 trajectory, self.specs, now_s=now, current_positions=list(self.desired),
@@ -259,6 +262,33 @@ class TrajectoryExecutor(Controller):
             raise
         self.goals.queue(handle, now)
         return handle
+
+    def tolerances_held_to(self, tolerances: GoalTolerances | None
+                           ) -> tuple[tuple[float, ...], tuple[float, ...], float]:
+        """(path tolerances, goal tolerances per joint, goal time [s]) a goal is held to: the controller's, with the
+        goal's own over them (0 keeps the controller's, negative: unchecked). InvalidTrajectory for a joint the
+        controller does not have or a value that is not a number."""
+        if tolerances is None:
+            return tuple(self.path_tolerance), tuple(self.goal_tolerance), self.goal_time_s
+
+        def merged(defaults, given: Mapping[str, float], what: str) -> tuple[float, ...]:
+            for name, value in given.items():
+                if name not in self.joint_names:
+                    raise InvalidTrajectory(TrajectoryErrorCode.INVALID_JOINTS, "no joint of that name in this "
+                                            f"controller ({', '.join(self.joint_names)})", field=what, joint=name)
+                if not isinstance(value, (int, float)) or isinstance(value, bool) or math.isnan(value):
+                    raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL, "must be a number", field=what,
+                                            joint=name, value=value)
+            return tuple(d if given.get(j, 0.0) == 0 else max(float(given[j]), 0.0)
+                         for j, d in zip(self.joint_names, defaults))
+
+        goal_time = tolerances.goal_time_s
+        if not isinstance(goal_time, (int, float)) or not math.isfinite(goal_time) or goal_time < 0:
+            raise InvalidTrajectory(TrajectoryErrorCode.INVALID_GOAL, "must be a finite time, not negative",
+                                    field="goal_time_tolerance", value=goal_time)
+        return (merged(self.path_tolerance, tolerances.path, "path_tolerance"),
+                merged(self.goal_tolerance, tolerances.goal, "goal_tolerance"),
+                float(goal_time) if goal_time > 0 else self.goal_time_s)
 
     def check_goal_shape(self, trajectory: JointTrajectory) -> None:
         """Check what does not depend on where the goal will start: joint names, point count and
@@ -505,38 +535,40 @@ class TrajectoryExecutor(Controller):
         if plan is None:
             return
         if self._hands_over():
-            self._supervise_hardware(time_s, plan, actual, desired)
+            self._supervise_hardware(time_s, goal, plan, actual, desired)
             return
         # Next cycle that needs this: every cycle when checking the path, else feedback or the end.
-        self._supervise_at = -math.inf if self._checks_path else min(self._next_feedback_s, plan.end_s)
-        if time_s < plan.end_s and self._checks_path:
-            k = path_violation(desired, actual, self.path_tolerance)
+        checks_path = any(tol > 0 for tol in goal.path_tolerance)
+        self._supervise_at = -math.inf if checks_path else min(self._next_feedback_s, plan.end_s)
+        if time_s < plan.end_s and checks_path:
+            k = path_violation(desired, actual, goal.path_tolerance)
             if k is not None:
                 self._plan = Plan.stop(self._state(), time_s, 0.0,  # this cycle's desired state, at its time
                                        self.stop_deceleration)
                 self.hardware.stop_motion()
                 self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.PATH_TOLERANCE_VIOLATED,
                                f"joint {self.joint_names[k]!r} is {abs(desired[k] - actual[k]):.4g} from "
-                               f"its path (tolerance {self.path_tolerance[k]})", time_s)
+                               f"its path (tolerance {goal.path_tolerance[k]})", time_s)
                 return
         if time_s + 1e-9 < plan.end_s:
             return
-        reached = goal_reached(desired, actual, self._of_joints(hw.velocity), self.goal_tolerance,
+        reached = goal_reached(desired, actual, self._of_joints(hw.velocity), goal.goal_tolerance,
                                self.stopped_velocity_tolerance, velocity_always=self.stopped_velocity_always)
         if reached and hw.in_motion is not True:  # and the hardware, if it says, says at rest
             self.goals.end(GoalStatus.SUCCEEDED, TrajectoryErrorCode.SUCCESSFUL, "", time_s)
-        elif reached and time_s > plan.end_s + self.goal_time_s:
+        elif reached and time_s > plan.end_s + goal.goal_time_s:
             self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.GOAL_TOLERANCE_VIOLATED,
-                           f"the hardware still reports the robot in motion {self.goal_time_s} s after the end",
+                           f"the hardware still reports the robot in motion {goal.goal_time_s} s after the end",
                            time_s)
-        elif time_s > plan.end_s + self.goal_time_s:
+        elif time_s > plan.end_s + goal.goal_time_s:
             worst = worst_joint(desired, actual)
             self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.GOAL_TOLERANCE_VIOLATED,
                            f"joint {self.joint_names[worst]!r} ended "
                            f"{abs(desired[worst] - actual[worst]):.4g} from its goal "
-                           f"{self.goal_time_s} s after the end", time_s)
+                           f"{goal.goal_time_s} s after the end", time_s)
 
-    def _supervise_hardware(self, time_s: float, plan: Plan, actual: Row, desired: Row) -> None:
+    def _supervise_hardware(self, time_s: float, goal: GoalHandle, plan: Plan, actual: Row,
+                            desired: Row) -> None:
         """A goal the hardware executes by its own timing (a controller's speed fractions may make it
         later than planned): it succeeds once its end time has come and the hardware has executed it,
         the joints are within the goal tolerance of its end and the hardware says the robot is at rest;
@@ -552,19 +584,19 @@ class TrajectoryExecutor(Controller):
         self._supervise_at = -math.inf  # from its end, every cycle: the hardware's word may come any time
         if hw.executing:
             self._executed_at_s = math.inf
-            if self.goal_time_limited and time_s > plan.end_s + self.goal_time_s:
+            if self.goal_time_limited and time_s > plan.end_s + goal.goal_time_s:
                 self.hardware.stop_motion()
                 self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.GOAL_TOLERANCE_VIOLATED,
-                               f"the controller still executes the goal {self.goal_time_s} s after its end "
+                               f"the controller still executes the goal {goal.goal_time_s} s after its end "
                                f"(goal_time_s)", time_s)
             return
         self._executed_at_s = min(self._executed_at_s, time_s)
-        reached = goal_reached(desired, actual, self._of_joints(hw.velocity), self.goal_tolerance,
+        reached = goal_reached(desired, actual, self._of_joints(hw.velocity), goal.goal_tolerance,
                                self.stopped_velocity_tolerance, velocity_always=self.stopped_velocity_always)
         if reached and hw.in_motion is not True:
             self.goals.end(GoalStatus.SUCCEEDED, TrajectoryErrorCode.SUCCESSFUL, "", time_s)
-        elif time_s > self._executed_at_s + self.goal_time_s:
+        elif time_s > self._executed_at_s + goal.goal_time_s:
             worst = worst_joint(desired, actual)
             self.goals.end(GoalStatus.ABORTED, TrajectoryErrorCode.GOAL_TOLERANCE_VIOLATED,
                            f"joint {self.joint_names[worst]!r} ended {abs(desired[worst] - actual[worst]):.4g} "
-                           f"from its goal {self.goal_time_s} s after the controller executed it", time_s)
+                           f"from its goal {goal.goal_time_s} s after the controller executed it", time_s)

@@ -13,8 +13,8 @@ from __future__ import annotations
 import itertools
 import threading
 from collections import deque
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from enum import Enum
 
 from jointctl.trajectory.errors import InvalidTrajectory, TrajectoryErrorCode
@@ -60,8 +60,22 @@ class TrajectoryFeedback:
         return tuple(d - a for d, a in zip(self.desired_positions, self.actual_positions))
 
 
+@dataclass(frozen=True)
+class GoalTolerances:
+    """A goal's own tolerances, as control_msgs/FollowJointTrajectory's goal carries them: per joint name a position
+    tolerance [m or rad] along the path (``path``) and at the end (``goal``), and the time the joints may take after
+    the goal's end to get there (``goal_time_s`` [s]). For each, 0 (or absent) keeps the controller's own, a negative
+    value takes the check away ("erased"), a positive one replaces it."""
+
+    path: Mapping[str, float] = field(default_factory=dict)
+    goal: Mapping[str, float] = field(default_factory=dict)
+    goal_time_s: float = 0.0
+
+
 class GoalHandle:
-    """One goal's life. ``wait()`` blocks another thread until the terminal result."""
+    """One goal's life. ``wait()`` blocks another thread until the terminal result. ``path_tolerance``,
+    ``goal_tolerance`` (per joint of the executor, 0: unchecked) and ``goal_time_s`` are the ones it is held to
+    (the executor's, or the goal's own: :class:`GoalTolerances`), set when it is submitted."""
 
     def __init__(self, goal_id: int, trajectory: JointTrajectory,
                  on_feedback: Callable[[TrajectoryFeedback], None] | None = None,
@@ -74,6 +88,9 @@ class GoalHandle:
         self.result: GoalResult | None = None
         self.validated: ValidatedTrajectory | None = None
         self.cancel_requested = False
+        self.path_tolerance: tuple[float, ...] = ()
+        self.goal_tolerance: tuple[float, ...] = ()
+        self.goal_time_s = 0.0
         self._done = threading.Event()
         self._finish_lock = threading.Lock()
 
