@@ -76,6 +76,9 @@ def test_tf_puts_link2_where_the_urdf_and_the_joint_state_say(sim_time_robot):
 def test_switching_the_controller_off_and_on_as_ros2_control_does(sim_time_robot):
     env = sim_time_robot.env
     reference(env, -0.3)
+    # At rest first: the effort left on the joint is then the one that holds it (a P loop's effort mid-move would
+    # leave a constant force off the gravity load, and the piston would drift at (F - τ_hold)/b).
+    sim_time_robot.rest("joint1")
     out = ros2(env, "control", "switch_controllers", "--deactivate", CONTROLLER)
     assert "Successfully switched controllers" in out.stdout, out.stdout + out.stderr
     listed = ros2(env, "control", "list_controllers").stdout
