@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
+from jointctl.control.joint_controllers import JointPositionController
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.errors import PhysicsError
 from jointctl.recording.trace import Trace, load_trace

@@ -95,7 +95,7 @@ def test_every_channel_is_there_with_one_message_per_trace_row(drop_run):
     assert schemas[fm.OBJECTS].name == "foxglove.SceneUpdate"
     assert schemas[fm.EVENTS].name == "foxglove.Log"
     assert schemas[fm.ROBOT_DESCRIPTION].name == "std_msgs/String"
-    ros = schemas.pop(fm.ROS_JOINT_STATES)
+    schemas.pop(fm.ROS_JOINT_STATES)  # the ROS 2 channel: ros2msg and cdr, checked in test_mcap_ros2
     assert all(s.encoding == "jsonschema" for s in schemas.values())
     assert all(c.message_encoding == "json" for c in summary.channels.values() if c.topic in schemas)
 

@@ -17,7 +17,7 @@ import pytest
 
 from jointctl.wire.simple_message import STOP_TRAJECTORY
 from tests.hardware.controller_doubles import ControllerDouble
-from tests.ros.conftest import joint_positions, run, wait_for_topic
+from tests.ros.conftest import run, wait_for_topic
 from tests.waiting import wait_until
 
 SERVER = "/joint_trajectory_action"

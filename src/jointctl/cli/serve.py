@@ -1,5 +1,6 @@
 """``jointctl serve``: a robot or a scenario as a ROS 1 node, with the chapter's topic and action names, or with
-``--ros2`` as a ros2_control robot on ROS 2 (jointctl.ros2.node); optionally recorded (``--record DIR``: trace.csv, run.mcap) and streamed to Foxglove (``--foxglove [PORT]``)."""
+``--ros2`` as a ros2_control robot on ROS 2 (jointctl.ros2.node); optionally recorded (``--record DIR``: trace.csv,
+run.mcap) and streamed to Foxglove (``--foxglove [PORT]``)."""
 
 from __future__ import annotations
 

@@ -67,7 +67,7 @@ def served_ros2(args: argparse.Namespace, *, controller: str | None = None, join
         try:
             loop = hardware.loop
             if tool == "identify" and not hardware.reports_effort(loop.joint):
-                raise ConfigError(f"the joint states carry no effort for it (is an effort state interface "
+                raise ConfigError("the joint states carry no effort for it (is an effort state interface "
                                   "broadcast?): identification fits the effort that moves the joint",
                                   field="--joint", value=loop.joint)
             period = hardware_module.update_period(graph, namespace, loop.controller)

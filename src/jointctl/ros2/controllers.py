@@ -20,8 +20,8 @@ relative to it (``~/reference`` is ``/<controller>/reference``) and the joint st
   (``gains.<dof>.*`` changed live through the controller's ``set_parameter``, which refuses what ros2_controllers
   refuses); forward_command_controller's ``~/commands`` (std_msgs/msg/Float64MultiArray, one value per joint) and its
   ``joints`` and ``interface_name`` parameters (read-only); joint_state_broadcaster's ``use_local_topics``;
-- a trajectory executor (and ``joint_trajectory_controller/JointTrajectoryController``): joint_trajectory_controller's ``~/follow_joint_trajectory`` action
-  (control_msgs/action/FollowJointTrajectory), ``~/joint_trajectory`` topic and ``~/controller_state``
+- a trajectory executor (and ``joint_trajectory_controller/JointTrajectoryController``): joint_trajectory_controller's
+  ``~/follow_joint_trajectory`` action (control_msgs/action/FollowJointTrajectory), ``~/joint_trajectory`` topic and ``~/controller_state``
   (control_msgs/msg/JointTrajectoryControllerState: the last cycle's reference against the joints' state, positions
   and velocities, at ``state_rate_hz``). As JTC does, a goal that is
   not valid is rejected when it arrives (its reason, with the error code JTC's result would carry, logged on
