@@ -55,11 +55,14 @@ def test_a_goal_beyond_the_joint_limit_is_rejected_and_nothing_moves(trajectory_
 
 
 def test_the_goals_own_path_tolerance_aborts_with_jtcs_error_code(trajectory_robot):
-    """A path tolerance of 1 µm in the goal (the controller has none): the tracking error of any real move is
-    larger, so the goal ends aborted with PATH_TOLERANCE_VIOLATED (-4) and the joint is brought to rest."""
+    """A path tolerance of 1e-12 m in the goal (the controller has none): a 0.2 m move's tracking error, however good
+    the feed-forward, is larger (the loop's discretisation alone), so the goal ends aborted with
+    PATH_TOLERANCE_VIOLATED (-4) and the joint is brought to rest. The move starts from a goal's end (-0.3 m)."""
     env = trajectory_robot.env
+    out = ros2(env, "action", "send_goal", ACTION, "control_msgs/action/FollowJointTrajectory", goal(-0.3))
+    assert "SUCCEEDED" in out.stdout, out.stdout + out.stderr
     strict = ("{trajectory: {joint_names: [joint1], points: [{positions: [-0.5], time_from_start: {sec: 1}}]}, "
-              "path_tolerance: [{name: joint1, position: 0.000001}]}")
+              "path_tolerance: [{name: joint1, position: 1.0e-12}]}")
     out = ros2(env, "action", "send_goal", ACTION, "control_msgs/action/FollowJointTrajectory", strict)
     assert "ABORTED" in out.stdout and "error_code: -4" in out.stdout, out.stdout + out.stderr
     assert trajectory_robot.rest("joint1")["velocity"] == pytest.approx(0.0, abs=1e-3)
