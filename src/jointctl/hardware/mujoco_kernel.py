@@ -14,29 +14,11 @@ a scenario's ``loop: python`` runs it where that matters.
 
 from __future__ import annotations
 
-from pathlib import Path
-
-import llvmlite.binding
-import mujoco
 import numpy as np
-from numba import types
 
 from jointctl.hardware.mujoco_hardware import MujocoHardware
 from jointctl.jit import kernel
-
-
-def mujoco_library() -> Path:
-    """The MuJoCo library the ``mujoco`` package loaded (``libmujoco.so.X`` beside its modules)."""
-    folder = Path(mujoco.__file__).resolve().parent
-    found = sorted(p for p in folder.glob("libmujoco*") if p.is_file())
-    if not found:
-        raise ImportError(f"no MuJoCo library (libmujoco*) in {folder}")
-    return found[0]
-
-
-llvmlite.binding.load_library_permanently(str(mujoco_library()))
-#: ``void mj_step(const mjModel* m, mjData* d)``, by address.
-mj_step = types.ExternalFunction("mj_step", types.void(types.uintp, types.uintp))
+from jointctl.model.mujoco_functions_kernel import mj_step
 
 #: The hardware's integer state: cycles to the next warning check, and the check's period.
 UNTIL_CHECK, CHECK_EVERY = range(2)
