@@ -5,10 +5,12 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
 import pytest
 
 from jointctl.errors import ConfigError, ExpressionError
 from jointctl.commands.sources import (
+    ChirpSource,
     CommandSource,
     ConstantSource,
     ExpressionSource,
@@ -294,3 +296,30 @@ def test_extremes_bound_every_value_a_source_sends() -> None:
     assert velocity.extremes() == (("amplitude", pytest.approx(2 * math.pi * 0.3)),
                                    ("amplitude", pytest.approx(-2 * math.pi * 0.3)))
     assert ExpressionSource("sin(t)").extremes() == ()  # known only as it runs
+
+
+def test_a_chirp_sweeps_its_frequency_in_a_straight_line_and_rests_at_its_offset_outside() -> None:
+    chirp = ChirpSource(0.05, 1.0, 9.0, 4.0, offset=-0.5, at_s=1.0)
+    assert chirp.sample(0.999) == chirp.sample(5.001) == -0.5
+    times = np.arange(1.0, 5.0, 1e-5)
+    values = np.array([chirp.sample(t) for t in times]) + 0.5
+    assert np.abs(values).max() == pytest.approx(0.05, rel=1e-6)
+    # Upward zero crossings are one period apart: the period there is 1/f(τ), f(τ) = 1 + 8·τ/4 Hz.
+    rising = times[1:][(values[:-1] < 0) & (values[1:] >= 0)]
+    middle = (rising[1:] + rising[:-1]) / 2 - 1.0
+    measured = 1.0 / np.diff(rising)
+    assert len(rising) == 19  # the phase runs 2π·(1·4 + ½·8·4) = 2π·20: rising through 2π·1 ... 2π·19 inside
+    assert measured == pytest.approx(1.0 + 2.0 * middle, rel=2e-3)
+
+
+def test_a_chirp_from_the_scenario_mapping_and_its_refusals() -> None:
+    chirp = command_source_from_config({"type": "chirp", "amplitude": 0.1, "f_start_hz": 0.5, "f_end_hz": 5,
+                                        "duration_s": 2, "offset": 0.2, "at": 1}, field="cmd", source="s.yaml")
+    assert chirp == ChirpSource(0.1, 0.5, 5.0, 2.0, 0.2, 1.0)
+    assert chirp.extremes() == (("offset", 0.2), ("amplitude", pytest.approx(0.3)), ("amplitude", 0.1))
+    for key, value, words in (("duration_s", 0, "above 0 s"), ("f_end_hz", -1, "0 Hz or more"),
+                              ("f_start_hz", "x", "must be a number")):
+        config = {"type": "chirp", "amplitude": 0.1, "f_start_hz": 0.5, "f_end_hz": 5, "duration_s": 2, key: value}
+        with pytest.raises(ConfigError, match=words) as info:
+            command_source_from_config(config, field="cmd", source="s.yaml")
+        assert info.value.field == f"cmd.{key}" and info.value.value == value

@@ -13,7 +13,7 @@ import pytest
 
 from jointctl.control.joint_controllers import JointPositionController
 from jointctl.control.joint_state_controller import JointStateController
-from jointctl.errors import PhysicsError
+from jointctl.errors import ExpressionError, PhysicsError
 from jointctl.recording.trace import Trace, load_trace
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import load_scenario
@@ -133,13 +133,40 @@ def test_the_dropped_weight_gives_the_same_run_on_both_paths(tmp_path):
     assert compiled.trace["ft_sensor.force_z"][-1] < -40.0  # the 10 kg weight rests on the disk at 5 m/s²
 
 
-def test_one_dof_sine_stays_in_python_for_its_expression_and_its_sine_source_runs_compiled(tmp_path):
-    session = Session(load_scenario("one_dof_sine"))
-    session.run(0.001)
-    assert session.loop.mode == "python" and "ExpressionSource" in session.loop.mode_reason
-    sine = "commands.joint1_position_controller={type: sine, amplitude: 0.1, frequency_hz: 3.183098861837907, " \
-           "offset: -0.5, rate_hz: 100}"
-    assert_same(*both_paths("one_dof_sine", tmp_path, [sine]))
+def test_one_dof_sine_with_its_expression_gives_the_same_run_on_both_paths(tmp_path):
+    """The expression is evaluated in Python a stretch ahead, a message at a time: the same messages, the same
+    hold left behind."""
+    python, compiled = both_paths("one_dof_sine", tmp_path)
+    assert_same(python, compiled)
+    source = compiled.session.sources["joint1_position_controller"]
+    assert source._hold.k == 399  # the last message of 4 s at 100 Hz, as the Python loop leaves it
+
+
+def test_an_expression_failing_mid_run_holds_its_last_value_alike_on_both_paths(write_scenario, tmp_path):
+    """``log(1.5-t)`` leaves its domain at 1.5 s: each later message is rejected and the last good value holds."""
+    path = write_scenario(step_scenario(duration_s=2.5, commands={
+        "joint1_position_controller": {"type": "expression", "expression": "-0.3+0.1*log(1.5-t)", "rate_hz": 50}}))
+    python, compiled = both_paths(path, tmp_path)
+    assert_same(python, compiled)
+    a, b = (run.session.sources["joint1_position_controller"] for run in (python, compiled))
+    assert a.rejected_samples == b.rejected_samples == 50  # 1.5 s to 2.5 s at 50 Hz, 2.48 s the last
+    assert a.last_error == b.last_error is not None
+
+
+def test_an_expression_with_no_value_to_hold_fails_the_run_at_the_same_cycle(write_scenario, tmp_path):
+    """``log(1.5-t)`` leaves its domain at 1.5 s; reset there, the source has no value to hold: the next run
+    raises at its first cycle on both paths, the source's error counted once."""
+    path = write_scenario(step_scenario(duration_s=2.0, commands={
+        "joint1_position_controller": {"type": "expression", "expression": "-0.3+0.1*log(1.5-t)"}}))
+    for loop in ("python", "auto"):
+        session = Session(load_scenario(path, [f"loop={loop}"]))
+        session.run(1.6)
+        source = session.sources["joint1_position_controller"]
+        source.reset()
+        with pytest.raises(ExpressionError, match="i=160, t=1.6 s: math domain error"):
+            session.run(0.1)
+        assert session.loop.cycle == 1600 and source.rejected_samples == 1
+        assert session.loop.mode == ("python" if loop == "python" else "compiled")
 
 
 # -- each law's variants ----------------------------------------------------------------------------------------
@@ -157,8 +184,12 @@ POSITION = "controllers.joint1_position_controller"
     ["commands.joint1_position_controller={type: constant, value: -0.35}", "record={every: 7}"],
     ["commands.joint1_position_controller={type: sine, amplitude: 0.2, frequency_hz: 2.0, offset: -0.5, "
      "rate_hz: 250}", "gravity=-3.0"],
+    ["commands.joint1_position_controller={type: chirp, amplitude: 0.05, f_start_hz: 0.5, f_end_hz: 8.0, "
+     "duration_s: 0.4, offset: -0.3, at: 0.1}"],
+    ["commands.joint1_position_controller={type: expression, expression: '-0.3+0.05*sin(t*20)+0.001*i', "
+     "rate_hz: 333}"],
 ], ids=["d on error", "d on measurement", "i clamp", "antiwindup", "damping feed-forward, ramp", "every 7",
-        "sine"])
+        "sine", "chirp", "expression at 333 Hz"])
 def test_the_position_controller_and_the_sources_give_the_same_run(overrides, write_scenario, tmp_path):
     path = write_scenario(step_scenario(duration_s=0.6))
     assert_same(*both_paths(path, tmp_path, overrides))

@@ -7,6 +7,7 @@ import json
 
 import pytest
 
+from jointctl.commands.sources import CommandSource, SourceFeed
 from jointctl.compiled.plan import compile_loop
 from jointctl.scenario.run import run_scenario
 from jointctl.scenario.session import Session
@@ -32,8 +33,6 @@ def test_a_run_of_built_in_parts_is_compiled(write_scenario):
      f"controller '{POSITION}' (FaultyPositionController) has no compiled form"),
     ({"controllers": {POSITION: {"feedforward": {"gravity": True}}}},
      "the update ModelFeedforward.update has no compiled form"),
-    ({"commands": {POSITION: {"type": "expression", "expression": "-0.3"}}},
-     f"the command source ExpressionSource of '{POSITION}' has no compiled form"),
     ({"latency_cycles": 1}, "the hardware (ImperfectHardware) has no compiled form"),
     ({"controller_file": "nac", "start_controllers": ["joint_state_controller", "joint1_velocity_controller",
                                                       "joint1_admittance_controller"], "commands": {}},
@@ -41,11 +40,21 @@ def test_a_run_of_built_in_parts_is_compiled(write_scenario):
     ({"controller_file": "velocity", "start_controllers": ["joint_state_controller", "joint1_velocity_controller"],
       "controllers": {"joint1_velocity_controller": {"command_timeout_s": 0.1}}, "commands": {}},
      "controller 'joint1_velocity_controller' (JointVelocityController): its command watchdog has no compiled form"),
-], ids=["asked", "user controller", "gravity feed-forward", "expression", "late commands", "admittance",
+], ids=["asked", "user controller", "gravity feed-forward", "late commands", "admittance",
         "watchdog"])
 def test_a_part_without_a_compiled_form_keeps_the_python_loop_and_says_which(changes, reason, write_scenario):
     session = Session(load_scenario(write_scenario(step_scenario(**changes))))
     assert mode_of(session) == ("python", reason)
+
+
+def test_a_command_source_of_the_users_keeps_the_python_loop(write_scenario):
+    class Ramp(CommandSource):
+        def sample(self, t: float) -> float:
+            return -0.2 - 0.01 * t
+
+    session = Session(load_scenario(write_scenario(step_scenario(commands={}))))
+    session.loop.add_input(SourceFeed(Ramp(), session.manager.controller(POSITION)))
+    assert mode_of(session) == ("python", f"the command source Ramp of '{POSITION}' has no compiled form")
 
 
 def test_a_trajectory_executor_keeps_the_python_loop():

@@ -19,6 +19,7 @@ Scenario files describe a source as a mapping, read by
     {type: step, from: -0.2, to: -0.5, at: 0.5, ramp_s: 0.05}   (a ramp from at to at + ramp_s)
     {type: sine, amplitude: 0.1, frequency_hz: 3, offset: -0.5, rate_hz: 100, derivative: false}
     {type: expression, expression: "0.1*sin(i/5)-0.5", rate_hz: 100}
+    {type: chirp, amplitude: 0.05, f_start_hz: 0.5, f_end_hz: 10, duration_s: 8, offset: -0.5, at: 1.0}
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from jointctl.errors import ConfigError, ExpressionError
 from jointctl.commands.expression import Expression, parse_expression
 
 __all__ = [
+    "ChirpSource",
     "CommandSource",
     "ConstantSource",
     "ExpressionSource",
@@ -212,6 +214,44 @@ class SineSource(CommandSource):
                 ("amplitude", self.offset - abs(self.amplitude)))
 
 
+@dataclass(frozen=True)
+class ChirpSource(CommandSource):
+    """A linear chirp: from ``at_s`` for ``duration_s`` (seconds), ``offset + amplitude·sin(φ(τ))`` with
+    ``τ = t - at_s`` and ``φ(τ) = 2π·(f_start_hz·τ + ½·(f_end_hz - f_start_hz)·τ²/duration_s)``: its frequency
+    sweeps in a straight line from ``f_start_hz`` to ``f_end_hz``; ``offset`` before and after. Sampled at
+    every loop time (no publishing rate: a chirp aliases at a rate below twice its end frequency), the
+    signal of a frequency-response measurement fed to a loop by hand."""
+
+    amplitude: float
+    f_start_hz: float
+    f_end_hz: float
+    duration_s: float
+    offset: float = 0.0
+    at_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("amplitude", "f_start_hz", "f_end_hz", "duration_s", "offset", "at_s"):
+            object.__setattr__(self, name, _number(getattr(self, name), name, None))
+        for name in ("f_start_hz", "f_end_hz"):
+            if getattr(self, name) < 0.0:
+                raise ConfigError("frequency must be 0 Hz or more", field=name, value=getattr(self, name))
+        if self.duration_s <= 0.0:
+            raise ConfigError("must be above 0 s", field="duration_s", value=self.duration_s)
+
+    def sample(self, t: float) -> float:
+        tau = t - self.at_s
+        if tau < 0.0 or tau > self.duration_s:
+            return self.offset
+        phase = 2.0 * math.pi * (self.f_start_hz * tau
+                                 + 0.5 * (self.f_end_hz - self.f_start_hz) * tau * tau / self.duration_s)
+        return self.offset + self.amplitude * math.sin(phase)
+
+    def extremes(self) -> tuple[tuple[str, float], ...]:
+        """The offset and the crests offset ± |amplitude|."""
+        return (("offset", self.offset), ("amplitude", self.offset + abs(self.amplitude)),
+                ("amplitude", self.offset - abs(self.amplitude)))
+
+
 class ExpressionSource(CommandSource):
     """An expression (see :mod:`jointctl.commands.expression`) published at ``rate_hz``.
 
@@ -298,6 +338,7 @@ _KEYS: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     "step": (frozenset({"from", "to", "at"}), frozenset({"ramp_s"})),
     "sine": (frozenset({"amplitude", "frequency_hz"}), frozenset({"offset", "rate_hz", "derivative"})),
     "expression": (frozenset({"expression"}), frozenset({"rate_hz"})),
+    "chirp": (frozenset({"amplitude", "f_start_hz", "f_end_hz", "duration_s"}), frozenset({"offset", "at"})),
 }
 
 
@@ -348,6 +389,16 @@ def command_source_from_config(config: Mapping[str, Any], *, field: str, source:
         if ramp_s < 0.0:
             raise ConfigError("must be 0 s or more", source=source, field=f"{field}.ramp_s", value=config["ramp_s"])
         return StepSource(number("from"), number("to"), number("at"), ramp_s)
+    if kind == "chirp":
+        for key in ("f_start_hz", "f_end_hz"):
+            if number(key) < 0.0:
+                raise ConfigError("frequency must be 0 Hz or more", source=source, field=f"{field}.{key}",
+                                  value=config[key])
+        if number("duration_s") <= 0.0:
+            raise ConfigError("must be above 0 s", source=source, field=f"{field}.duration_s",
+                              value=config["duration_s"])
+        return ChirpSource(number("amplitude"), number("f_start_hz"), number("f_end_hz"), number("duration_s"),
+                           number("offset", 0.0), number("at", 0.0))
     rate_hz = number("rate_hz", 100.0)
     if rate_hz <= 0.0:
         raise ConfigError("rate must be above 0 Hz", source=source, field=f"{field}.rate_hz", value=config["rate_hz"])

@@ -40,7 +40,7 @@ def run_cycles(k0, n, period_s,
                model_address, data_address, nstep, qpos, qvel, actuator_force, ctrl, sensordata, warnings,
                qpos_adr, dof_adr, actuator, reduction, sensors, counters, warnings_seen,
                position, velocity, effort, wrench, command,
-               feed_parameters, feed_state, feed_controller,
+               feed_parameters, feed_state, feed_tables, feed_controller,
                kinds, parameters, state, latest, references, reference_positions, reference_velocities,
                reference_accelerations,
                trace_on, trace_state, rows, frames_on, frame_state, frames, frame_times,
@@ -54,7 +54,7 @@ def run_cycles(k0, n, period_s,
     for k in range(k0, k0 + n):
         t = k * period_s
         for f in range(feed_parameters.shape[0]):
-            value = source_sample(feed_parameters, feed_state, f, t)
+            value = source_sample(feed_parameters, feed_state, feed_tables, f, t, k - k0)
             c = feed_controller[f]
             if kinds[c] == POSITION:
                 feed_position(parameters, state, c, value, reference_positions, reference_velocities,

@@ -8,7 +8,8 @@ stays in Python (the first part without one). Parts with a compiled form:
 - controllers: effort ``JointPositionController`` (without the model feed-forward, not chained),
   ``JointVelocityController`` (without a command watchdog, not chained), ``JointStateController`` (without
   subscribers);
-- inputs: a :class:`~jointctl.commands.sources.SourceFeed` of a constant, step or sine source into one of those;
+- inputs: a :class:`~jointctl.commands.sources.SourceFeed` of a constant, step, sine, chirp or expression source
+  into one of those (an expression evaluated in Python a stretch ahead, a message at a time);
   the scenario's :class:`~jointctl.runtime.spawner.ObjectSpawner` (run in Python at its cycles, between stretches);
 - observers: the :class:`~jointctl.recording.trace.TraceRecorder`, a :class:`~jointctl.visuals.video.FrameCapture`,
   ``run.mcap``'s :class:`~jointctl.recording.mcap_record.ObjectTrack`.
@@ -22,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from jointctl.commands.sources import ConstantSource, SineSource, SourceFeed, StepSource
+from jointctl.commands.sources import ChirpSource, ConstantSource, ExpressionSource, SineSource, SourceFeed, StepSource
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.hardware.mujoco_hardware import MujocoHardware
@@ -35,7 +36,7 @@ from jointctl.visuals.video import FrameCapture
 STRETCH_CYCLES = 2000
 
 _CONTROLLERS = (JointPositionController, JointVelocityController, JointStateController)
-_SOURCES = (ConstantSource, StepSource, SineSource)
+_SOURCES = (ConstantSource, StepSource, SineSource, ChirpSource, ExpressionSource)
 
 
 def _describe(hook) -> str:
@@ -183,6 +184,8 @@ class CompiledRun:
         for f, source in enumerate(self.sources):
             self.feed_parameters[f], self.feed_state[f] = pack_source(source)
         self.feed_controller = np.array([self.controllers.index(f.controller) for f in feeds], dtype=np.int64)
+        self.tabled = [(f, source) for f, source in enumerate(self.sources) if type(source) is ExpressionSource]
+        self.feed_tables = np.zeros((len(feeds), STRETCH_CYCLES if self.tabled else 1))
         self.recorder = next((o for o in loop.observers if type(o) is TraceRecorder), None)
         self.trace_state = np.array(pack_trace(self.recorder) if self.recorder else [0.0, 1.0])
         width = len(self.recorder.columns) if self.recorder else 1
@@ -238,13 +241,14 @@ class CompiledRun:
                 n = STRETCH_CYCLES if end < 0 else min(STRETCH_CYCLES, end - k)
                 if spawn is not None:
                     n = min(n, spawn - k)
+                self._fill_tables(k, n)
                 hw = self.hw
                 cycle.run_cycles(
                     k, n, loop.period_s,
                     hw.model_address, hw.data_address, hw.nstep, hw.qpos, hw.qvel, hw.actuator_force, hw.ctrl,
                     hw.sensordata, hw.warnings, hw.qpos_adr, hw.dof_adr, hw.actuator, hw.reduction, hw.sensors,
                     hw.counters, hw.warnings_seen, hw.position, hw.velocity, hw.effort, hw.wrench, hw.command,
-                    self.feed_parameters, self.feed_state, self.feed_controller,
+                    self.feed_parameters, self.feed_state, self.feed_tables, self.feed_controller,
                     self.kinds, self.parameters, self.state, self.latest, self.references, *self.reference_arrays,
                     self.recorder is not None, self.trace_state, self.rows,
                     self.capture is not None, self.frame_state, self.frames, self.frame_times,
@@ -261,6 +265,13 @@ class CompiledRun:
         if status == cycle.WARNED:
             loop.hardware._check_warnings()  # raises the warning, as the Python advance does
         return k, status == cycle.NOT_FINITE
+
+    def _fill_tables(self, k: int, n: int) -> None:
+        """The expression sources' values over cycles ``k`` to ``k + n - 1``, sampled in Python."""
+        from jointctl.commands.sources_kernel import fill_table
+
+        for f, source in self.tabled:
+            fill_table(source, self.feed_tables[f], k, n, self.loop.period_s)
 
     def _hand_over(self, rows: int, frames: int, poses: int) -> None:
         """Give the observers what a stretch kept: trace rows, video frames, object poses."""
