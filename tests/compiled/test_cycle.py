@@ -195,6 +195,36 @@ def test_the_position_controller_and_the_sources_give_the_same_run(overrides, wr
     assert_same(*both_paths(path, tmp_path, overrides))
 
 
+def test_the_velocity_watchdog_times_a_silent_reference_out_alike(write_scenario, tmp_path):
+    """A reference given at the edge door (no source) holds for ``command_timeout_s`` (0.1 s) from the cycle
+    that first sees it, then zero velocity; a new one (given between two runs, not yet seen when the second run
+    is packed) holds again from its first cycle. The same on both paths, alternating between them too."""
+    velocity = "joint1_velocity_controller"
+    path = write_scenario(step_scenario(
+        controller_file="velocity", start_controllers=["joint_state_controller", velocity], commands={},
+        gravity=0.0, initial_positions={"joint1": -0.3}, duration_s=0.6,
+        controllers={velocity: {"command_timeout_s": 0.1}}))
+
+    def given(session):
+        controller = session.manager.controller(velocity)
+        controller.set_reference(0.05)
+        session.run(0.3)
+        assert controller.timed_out
+        controller.set_reference(-0.05)
+
+    python = run_on(path, "python", tmp_path / "python", ["duration_s=0.3"], before=given)
+    compiled = run_on(path, "auto", tmp_path / "compiled", ["duration_s=0.3"], before=given)
+    assert compiled.session.loop.mode == "compiled"
+    assert_same(python, compiled)
+    reference = compiled.trace["joint1.reference"]
+    expected = np.zeros(600)
+    for first, value in ((0, 0.05), (300, -0.05)):  # held while its age (loop times k·period) is <= 0.1 s
+        held = [k for k in range(first, first + 300) if k * 0.001 - first * 0.001 <= 0.1]
+        assert 100 <= len(held) <= 101
+        expected[held] = value
+    np.testing.assert_array_equal(reference, expected)
+
+
 def test_a_continuous_joint_wraps_its_error_alike(tmp_path):
     overrides = ["commands={joint1_position_controller: {type: step, from: -3.0, to: 3.0, at: 0.05}}",
                  "duration_s=2.0", "initial_positions={joint1: -3.0}", "gravity=0.0"]

@@ -37,11 +37,7 @@ def test_a_run_of_built_in_parts_is_compiled(write_scenario):
     ({"controller_file": "nac", "start_controllers": ["joint_state_controller", "joint1_velocity_controller",
                                                       "joint1_admittance_controller"], "commands": {}},
      "controller 'joint1_admittance_controller' (AdmittanceController) has no compiled form"),
-    ({"controller_file": "velocity", "start_controllers": ["joint_state_controller", "joint1_velocity_controller"],
-      "controllers": {"joint1_velocity_controller": {"command_timeout_s": 0.1}}, "commands": {}},
-     "controller 'joint1_velocity_controller' (JointVelocityController): its command watchdog has no compiled form"),
-], ids=["asked", "user controller", "gravity feed-forward", "late commands", "admittance",
-        "watchdog"])
+], ids=["asked", "user controller", "gravity feed-forward", "late commands", "admittance"])
 def test_a_part_without_a_compiled_form_keeps_the_python_loop_and_says_which(changes, reason, write_scenario):
     session = Session(load_scenario(write_scenario(step_scenario(**changes))))
     assert mode_of(session) == ("python", reason)

@@ -60,7 +60,7 @@ def run_cycles(k0, n, period_s,
                 feed_position(parameters, state, c, value, reference_positions, reference_velocities,
                               reference_accelerations)
             else:
-                feed_velocity(parameters, c, value, reference_velocities)
+                feed_velocity(parameters, state, c, value, reference_velocities)
         mujoco_read(qpos, qvel, actuator_force, sensordata, qpos_adr, dof_adr, actuator, reduction, sensors,
                     position, velocity, effort, wrench)
         for c in range(kinds.shape[0]):
@@ -69,7 +69,7 @@ def run_cycles(k0, n, period_s,
                 position_update(parameters, state, c, reference_positions, reference_velocities, references,
                                 position, velocity, command, period_s)
             elif kind == VELOCITY:
-                velocity_update(parameters, state, c, reference_velocities, references, velocity, command,
+                velocity_update(parameters, state, c, reference_velocities, references, velocity, command, t,
                                 period_s)
             else:
                 joint_state_update(parameters, state, c, latest, t, position, velocity, effort)

@@ -6,7 +6,7 @@ stays in Python (the first part without one). Parts with a compiled form:
 
 - the hardware: :class:`~jointctl.hardware.mujoco_hardware.MujocoHardware` (not paced to the wall clock);
 - controllers: effort ``JointPositionController`` (without the model feed-forward, not chained),
-  ``JointVelocityController`` (without a command watchdog, not chained), ``JointStateController`` (without
+  ``JointVelocityController`` (with its command watchdog; not chained), ``JointStateController`` (without
   subscribers);
 - inputs: a :class:`~jointctl.commands.sources.SourceFeed` of a constant, step, sine, chirp or expression source
   into one of those (an expression evaluated in Python a stretch ahead, a message at a time);
@@ -59,8 +59,6 @@ def controller_reason(controller) -> str | None:
         return f"{what} is chained to {controller.upstream!r}"
     if kind is JointPositionController and set(controller.feedforward_terms) - {"damping"}:
         return f"{what}: its model feed-forward has no compiled form"
-    if kind is JointVelocityController and controller.command_timeout_s is not None:
-        return f"{what}: its command watchdog has no compiled form"
     if kind is JointStateController and controller._subscribers:
         return f"{what} has subscribers"
     return None

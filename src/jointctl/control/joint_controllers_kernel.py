@@ -6,8 +6,9 @@ A controller is a row of parameters and a row of state (floats, indexed by the n
 or 0.0), row ``c`` of the compiled cycle's tables. :func:`pack_position` and :func:`pack_velocity` make them from the Python controller, and
 :func:`unpack_position` and :func:`unpack_velocity` put the state back, so a run can go on in Python at any
 cycle boundary. Covered: both derivative laws, position and velocity limits (clamps counted as in Python),
-continuous joints, the integral with its clamp and antiwindup, the damping feed-forward. Not covered (the
-run stays in Python): the model feed-forward (gravity, inertia), chained mode and the command watchdog.
+continuous joints, the integral with its clamp and antiwindup, the damping feed-forward, the velocity
+controller's command watchdog. Not covered (the run stays in Python): the model feed-forward (gravity, inertia)
+and chained mode.
 """
 
 from __future__ import annotations
@@ -20,20 +21,26 @@ from jointctl.jit import kernel
 
 #: The parameters row: the hardware joint index, the position range [m or rad], flags (a continuous joint,
 #: the derivative on the error's difference, the damping feed-forward), the joint damping [N·s/m or N·m·s/rad],
-#: the velocity limit [m/s or rad/s], then the PID's gains from ``PID``.
+#: the velocity limit [m/s or rad/s], then the PID's gains from ``PID``; after them a velocity controller's
+#: command timeout [s] (0: no watchdog).
 JOINT, LOWER, UPPER, CONTINUOUS, ON_ERROR, FF_DAMPING, JOINT_DAMPING, VELOCITY_LIMIT, PID = range(9)
-PARAMETERS = PID + GAINS
+COMMAND_TIMEOUT = PID + GAINS
+PARAMETERS = COMMAND_TIMEOUT + 1
 #: The state row: the PID's integral, the last error and whether there is one, the last rate, whether the
-#: edge's reference carries a velocity, the clamped cycles and the reference furthest outside (and whether any).
+#: edge's reference carries a velocity, the clamped cycles and the reference furthest outside (and whether any);
+#: the watchdog's: when the reference in hand was first seen [s], whether one came since the last update, and
+#: whether the last update found it too old.
 I_STATE, LAST_ERROR, LAST_VALID, LAST_RATE, EDGE_VELOCITY, CLAMPED, FURTHEST, HAS_FURTHEST = range(8)
-STATE = 8
+COMMAND_TIME, FRESH, TIMED_OUT = range(8, 11)
+STATE = 11
 
 _TWO_PI = 2.0 * math.pi
 
 
-def _parameters(c, continuous: bool, on_error: bool, ff_damping: bool, joint_damping: float) -> list[float]:
+def _parameters(c, continuous: bool, on_error: bool, ff_damping: bool, joint_damping: float,
+                command_timeout_s: float = 0.0) -> list[float]:
     return [float(c.index), c.lower, c.upper, float(continuous), float(on_error), float(ff_damping), joint_damping,
-            c.velocity_limit, *pid_gains(c.pid)]
+            c.velocity_limit, *pid_gains(c.pid), command_timeout_s]
 
 
 def _state(c, last_error: float, last_valid: bool, last_rate: float, edge_velocity: bool) -> list[float]:
@@ -64,15 +71,25 @@ def unpack_position(c: JointPositionController, state) -> None:
 
 
 def pack_velocity(c: JointVelocityController) -> tuple[list[float], list[float]]:
-    """The parameters and state rows of a velocity controller (no watchdog, not chained)."""
-    return _parameters(c, False, False, False, 0.0), _state(c, c._last_error, c._last_valid, 0.0, False)
+    """The parameters and state rows of a velocity controller (not chained)."""
+    timeout = c.command_timeout_s if c.command_timeout_s is not None and c.upstream is None else 0.0
+    state = _state(c, c._last_error, c._last_valid, 0.0, False)
+    state[COMMAND_TIME:] = [c._command_time, float(c._token is not c._seen), float(c.timed_out)]
+    return _parameters(c, False, False, False, 0.0, timeout), state
 
 
 def unpack_velocity(c: JointVelocityController, state) -> None:
-    """Put a velocity controller's state row back into the controller."""
+    """Put a velocity controller's state row back into the controller (a reference not yet seen by an update
+    stays unseen: its age counts from the next update's cycle, as in Python)."""
     _unpack_common(c, state)
     c._last_error = float(state[LAST_ERROR])
     c._last_valid = bool(state[LAST_VALID])
+    c._command_time = float(state[COMMAND_TIME])
+    c.timed_out = bool(state[TIMED_OUT])
+    if not state[FRESH]:
+        c._seen = c._token
+    elif c._token is c._seen:
+        c._token = object()
 
 
 @kernel
@@ -112,9 +129,10 @@ def feed_position(parameters, state, c, value, positions, velocities, accelerati
 
 
 @kernel
-def feed_velocity(parameters, c, value, velocities):
-    """``JointVelocityController.set_reference(value)``."""
+def feed_velocity(parameters, state, c, value, velocities):
+    """``JointVelocityController.set_reference(value)``: a new reference (the watchdog sees it as new)."""
     velocities[int(parameters[c, JOINT])] = value
+    state[c, FRESH] = 1.0
 
 
 @kernel
@@ -149,11 +167,20 @@ def position_update(parameters, state, c, positions, velocities, references, pos
 
 
 @kernel
-def velocity_update(parameters, state, c, velocities, references, velocity, effort_command, period_s):
-    """``JointVelocityController.update`` (no watchdog): the reference interface and measured state in, the
-    effort out."""
+def velocity_update(parameters, state, c, velocities, references, velocity, effort_command, t, period_s):
+    """``JointVelocityController.update`` at loop time ``t`` [s]: the reference interface and measured state in,
+    the effort out."""
     i = int(parameters[c, JOINT])
     reference = velocities[i]
+    timeout = parameters[c, COMMAND_TIMEOUT]
+    if timeout != 0.0:  # the watchdog: a reference older than the timeout is replaced by zero velocity
+        if state[c, FRESH] != 0.0:
+            state[c, FRESH] = 0.0
+            state[c, COMMAND_TIME] = t
+        timed_out = t - state[c, COMMAND_TIME] > timeout
+        state[c, TIMED_OUT] = 1.0 if timed_out else 0.0
+        if timed_out:
+            reference = 0.0
     limit = parameters[c, VELOCITY_LIMIT]
     if reference < -limit or reference > limit:
         reference = clamp_counted(state, c, reference, -limit, limit)
