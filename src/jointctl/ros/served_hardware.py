@@ -23,7 +23,6 @@ subscribes to its command topic (a started one). ``fault`` is set while no joint
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Sequence
 
@@ -34,6 +33,7 @@ from std_msgs.msg import Float64
 
 from jointctl.errors import ConfigError, JointCtlError
 from jointctl.hardware.interface import POSITION, VELOCITY, HardwareInterface
+from jointctl.hardware.joint_state_inbox import JointStateInbox
 
 #: ros_control controller types whose reference is a joint position / velocity.
 LOOP_TYPES = {"effort_controllers/JointPositionController": POSITION,
@@ -50,12 +50,7 @@ class ServedRobotHardware(HardwareInterface):
         self.namespace = namespace.strip("/")
         self.controllers = dict(controllers)
         self.stale_after_s = stale_after_s
-        self._lock = threading.Lock()
-        self._latest: JointState | None = None
-        self._latest_at = -float("inf")
-        self._recording: list[tuple[float, tuple, tuple, tuple]] | None = None
-        self._order: tuple[int, ...] | None = None
-        self._names_seen: tuple[str, ...] = ()
+        self._states = JointStateInbox(self.joint_names, f"/{self.namespace}/joint_states")
         self._publishers = {joint: rospy.Publisher(f"/{self.namespace}/{name}/command", Float64, queue_size=10)
                             for joint, (_, name) in self.controllers.items()}
         self._sent: dict[str, float] = {}
@@ -73,21 +68,7 @@ class ServedRobotHardware(HardwareInterface):
 
     # -- state -------------------------------------------------------------------------------------
     def _on_state(self, msg: JointState) -> None:
-        names = tuple(msg.name)
-        with self._lock:
-            if names != self._names_seen:
-                self._names_seen = names
-                where = {name: k for k, name in enumerate(names)}
-                missing = [j for j in self.joint_names if j not in where]
-                self._order = None if missing else tuple(where[j] for j in self.joint_names)
-            self._latest, self._latest_at = msg, time.monotonic()
-            if self._recording is not None and self._order is not None:
-                order = self._order
-                missing = (None,) * len(names)  # a publisher may leave velocity or effort out
-                effort = msg.effort if len(msg.effort) == len(names) else missing
-                velocity = msg.velocity if len(msg.velocity) == len(names) else missing
-                self._recording.append((msg.header.stamp.to_sec(), tuple(msg.position[k] for k in order),
-                                        tuple(velocity[k] for k in order), tuple(effort[k] for k in order)))
+        self._states.take(msg.name, msg.header.stamp.to_sec(), msg.position, msg.velocity, msg.effort)
 
     def wait_for_subscribers(self, timeout_s: float = 5.0) -> None:
         """Block until the served node has connected to every command topic: a message published
@@ -103,26 +84,15 @@ class ServedRobotHardware(HardwareInterface):
     def wait_for_state(self, timeout_s: float = 5.0) -> None:
         """Block until a joint state naming every joint has arrived; a clear error otherwise."""
         deadline = time.monotonic() + timeout_s
-        topic = f"/{self.namespace}/joint_states"
-        while time.monotonic() < deadline:
-            with self._lock:
-                if self._latest is not None and self._order is not None:
-                    break
+        while not self._states.complete():
+            if time.monotonic() > deadline:
+                raise self._states.missing_error(timeout_s, "is the robot served? jointctl serve ROBOT")
             time.sleep(0.02)
-        else:
-            with self._lock:
-                seen = self._names_seen
-            if seen:
-                raise JointCtlError(f"the served joint states name {', '.join(seen)}, not every joint of the robot "
-                                    f"({', '.join(self.joint_names)})", field=topic, value=list(seen))
-            raise JointCtlError(f"no joint state within {timeout_s:g} s (is the robot served? jointctl serve ROBOT)",
-                                field=topic, value=None)
         self.read()
 
     def start_recording(self) -> None:
         """Keep every joint state from now on (see :meth:`recorded`)."""
-        with self._lock:
-            self._recording = []
+        self._states.start_recording()
 
     def recorded(self, joint: str) -> tuple[list[float], list[float], list[float], list[float]]:
         """(stamp [s], position, velocity, effort) of ``joint`` in every joint state kept since
@@ -136,31 +106,10 @@ class ServedRobotHardware(HardwareInterface):
         :meth:`start_recording`, each a row of the joints in :attr:`joint_names`' order (the chain's
         motion, which loads ``joint``); recording stops. Refused when a state lacks the joints'
         velocities or ``joint``'s effort (identification needs them)."""
-        k = self.joint_index(joint)
-        with self._lock:
-            rows, self._recording = self._recording or [], None
-        for quantity, missing in (("velocity", lambda r: any(v is None for v in r[2])),
-                                  ("effort", lambda r: r[3][k] is None)):
-            if any(missing(r) for r in rows):
-                raise JointCtlError(f"the joint states carry no {quantity} for every joint: identification "
-                                    "needs position, velocity and the effort applied",
-                                    field=f"/{self.namespace}/joint_states", value=quantity)
-        return [r[0] for r in rows], [r[1] for r in rows], [r[2] for r in rows], [r[3] for r in rows]
+        return self._states.recorded_all(self.joint_index(joint))
 
     def read(self) -> None:
-        with self._lock:
-            msg, at, order = self._latest, self._latest_at, self._order
-        age = time.monotonic() - at
-        if msg is None or order is None:
-            self.fault = "no joint state yet"
-            return
-        self.position[:] = [msg.position[k] for k in order]
-        if len(msg.velocity) == len(msg.name):
-            self.velocity[:] = [msg.velocity[k] for k in order]
-        if len(msg.effort) == len(msg.name):
-            self.effort[:] = [msg.effort[k] for k in order]
-        self.fault = (f"no joint state on /{self.namespace}/joint_states for {age:.1f} s"
-                      if age > self.stale_after_s else None)
+        self.fault = self._states.read_into(self.position, self.velocity, self.effort, self.stale_after_s)
 
     # -- commands ----------------------------------------------------------------------------------
     def command_interfaces(self, joint: str) -> frozenset[str]:

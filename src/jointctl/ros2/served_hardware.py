@@ -48,6 +48,7 @@ from std_msgs.msg import Float64MultiArray, String
 
 from jointctl.errors import ConfigError, JointCtlError
 from jointctl.hardware.interface import POSITION, VELOCITY, HardwareInterface
+from jointctl.hardware.joint_state_inbox import JointStateInbox
 from jointctl.ros2.graph_client import GraphClient
 
 PID_TYPE = "pid_controller/PidController"
@@ -138,12 +139,7 @@ class ServedRos2Hardware(HardwareInterface):
         #: joint -> (interface, controller): the commanded joint, as ``--hardware ros``'s hardware has it.
         self.controllers = {loop.joint: (loop.interface, loop.controller)}
         self.stale_after_s = stale_after_s
-        self._lock = threading.Lock()
-        self._latest: JointState | None = None
-        self._latest_at = -math.inf
-        self._recording: list[tuple] | None = None
-        self._order: tuple[int, ...] | None = None
-        self._names_seen: tuple[str, ...] = ()
+        self._states = JointStateInbox(self.joint_names, self._topic("joint_states"))
         self._commanded = self.joint_index(loop.joint)
         self._command = self.command_buffer(loop.interface)
         self._sent: float | None = None
@@ -179,47 +175,19 @@ class ServedRos2Hardware(HardwareInterface):
 
     # -- state -------------------------------------------------------------------------------------
     def _on_state(self, msg: JointState) -> None:
-        names = tuple(msg.name)
-        with self._lock:
-            if names != self._names_seen:
-                self._names_seen = names
-                where = {name: k for k, name in enumerate(names)}
-                missing = [j for j in self.joint_names if j not in where]
-                self._order = None if missing else tuple(where[j] for j in self.joint_names)
-            self._latest, self._latest_at = msg, time.monotonic()
-            if self._recording is not None and self._order is not None:
-                order = self._order
-                stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-                self._recording.append((stamp, tuple(msg.position[k] for k in order),
-                                        _column(msg.velocity, order, len(names)),
-                                        _column(msg.effort, order, len(names))))
+        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+        self._states.take(msg.name, stamp, msg.position, msg.velocity, msg.effort)
 
     def wait_for_state(self, timeout_s: float = 5.0) -> None:
         """Block until a joint state naming every joint has arrived; a clear error otherwise."""
-        topic = self._topic("joint_states")
-
-        def complete() -> bool:
-            with self._lock:
-                return self._latest is not None and self._order is not None
-
-        if not self.graph.wait(complete, timeout_s):
-            with self._lock:
-                seen = self._names_seen
-            if seen:
-                raise JointCtlError(f"the joint states name {', '.join(seen)}, not every joint of the robot "
-                                    f"({', '.join(self.joint_names)})", field=topic, value=list(seen))
-            raise JointCtlError(f"no joint state within {timeout_s:g} s (is a joint_state_broadcaster active?)",
-                                field=topic, value=None)
+        if not self.graph.wait(self._states.complete, timeout_s):
+            raise self._states.missing_error(timeout_s, "is a joint_state_broadcaster active?")
         self.read()
 
     def reports_effort(self, joint: str) -> bool:
         """Whether the newest joint state carries ``joint``'s effort (a number, not NaN or left out)."""
-        k = self.joint_index(joint)
-        with self._lock:
-            msg, order = self._latest, self._order
-        if msg is None or order is None or len(msg.effort) != len(msg.name):
-            return False
-        return math.isfinite(msg.effort[order[k]])
+        effort = self._states.effort_of(self.joint_index(joint))
+        return effort is not None and math.isfinite(effort)
 
     def wait_for_subscribers(self, timeout_s: float = 5.0) -> None:
         """Block until the controller subscribes to what this side publishes."""
@@ -229,38 +197,16 @@ class ServedRos2Hardware(HardwareInterface):
 
     def start_recording(self) -> None:
         """Keep every joint state from now on (see :meth:`recorded_all`)."""
-        with self._lock:
-            self._recording = []
+        self._states.start_recording()
 
     def recorded_all(self, joint: str) -> tuple[list[float], list[tuple], list[tuple], list[tuple]]:
         """(stamp [s], positions, velocities, efforts) of every joint state kept since
         :meth:`start_recording`, each a row of the joints in :attr:`joint_names`' order; recording stops.
         Refused when a state lacks the joints' velocities or ``joint``'s effort (identification needs them)."""
-        k = self.joint_index(joint)
-        with self._lock:
-            rows, self._recording = self._recording or [], None
-        for quantity, missing in (("velocity", lambda r: any(v is None for v in r[2])),
-                                  ("effort", lambda r: r[3][k] is None)):
-            if any(missing(r) for r in rows):
-                raise JointCtlError(f"the joint states carry no {quantity} for every joint: identification "
-                                    "needs position, velocity and the effort applied",
-                                    field=self._topic("joint_states"), value=quantity)
-        return [r[0] for r in rows], [r[1] for r in rows], [r[2] for r in rows], [r[3] for r in rows]
+        return self._states.recorded_all(self.joint_index(joint))
 
     def read(self) -> None:
-        with self._lock:
-            msg, at, order = self._latest, self._latest_at, self._order
-        if msg is None or order is None:
-            self.fault = "no joint state yet"
-            return
-        n = len(msg.name)
-        self.position[:] = [msg.position[k] for k in order]
-        for target, values in ((self.velocity, msg.velocity), (self.effort, msg.effort)):
-            if len(values) == n:
-                target[:] = [values[k] if values[k] == values[k] else 0.0 for k in order]
-        age = time.monotonic() - at
-        self.fault = (f"no joint state on {self._topic('joint_states')} for {age:.1f} s"
-                      if age > self.stale_after_s else None)
+        self.fault = self._states.read_into(self.position, self.velocity, self.effort, self.stale_after_s)
 
     # -- commands ----------------------------------------------------------------------------------
     def command_interfaces(self, joint: str) -> frozenset[str]:
@@ -424,13 +370,6 @@ class ServedRos2Hardware(HardwareInterface):
             if state.name == self.loop.joint and math.isfinite(state.reference):
                 return float(state.reference)
         return None
-
-
-def _column(values, order: tuple[int, ...], n: int) -> tuple:
-    """``values`` in ``order``, None for a missing one (a short array, or NaN: an interface the joint lacks)."""
-    if len(values) != n:
-        return (None,) * len(order)
-    return tuple(values[k] if values[k] == values[k] else None for k in order)
 
 
 def served_description(graph: GraphClient, namespace: str = "", timeout_s: float = 5.0) -> tuple[str, str]:
