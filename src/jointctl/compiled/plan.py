@@ -6,15 +6,18 @@ stays in Python (the first part without one). Parts with a compiled form:
 
 - the hardware: :class:`~jointctl.hardware.mujoco_hardware.MujocoHardware` (not paced to the wall clock);
 - controllers: effort ``JointPositionController`` (without the model feed-forward, not chained),
-  ``JointVelocityController`` (without a command watchdog, not chained), ``JointStateController`` (without
-  subscribers);
+  ``JointVelocityController`` (without a command watchdog, or chained to an admittance controller updated before
+  it), ``JointStateController`` (without subscribers), the natural admittance controllers
+  :class:`~jointctl.control.admittance_controller.AdmittanceController` and
+  :class:`~jointctl.control.cartesian_admittance_controller.CartesianAdmittanceController` (one, with H diagonal:
+  not ``use_model_inertia``);
 - inputs: a :class:`~jointctl.commands.sources.SourceFeed` of a constant, step or sine source into one of those;
   the scenario's :class:`~jointctl.runtime.spawner.ObjectSpawner` (run in Python at its cycles, between stretches);
 - observers: the :class:`~jointctl.recording.trace.TraceRecorder`, a :class:`~jointctl.visuals.video.FrameCapture`,
   ``run.mcap``'s :class:`~jointctl.recording.mcap_record.ObjectTrack`.
 
-Everything else (a user's controller, the tuning page, ROS, a trajectory executor, admittance control, goals,
-noisy or late hardware) keeps the Python loop. A compiled run takes the Python objects' state
+Everything else (a user's controller, the tuning page, ROS, a trajectory executor, goals, noisy or late
+hardware) keeps the Python loop. A compiled run takes the Python objects' state
 as it is at the start of ``run`` and puts it back at its end, so runs may alternate between the two paths.
 """
 
