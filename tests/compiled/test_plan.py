@@ -143,3 +143,20 @@ def test_a_hook_added_while_a_compiled_run_goes_takes_it_on_in_python_from_the_n
     session.run()
     assert session.loop.mode == "python" and "changed" in session.loop.mode_reason
     assert len(seen) == 5000 - STRETCH_CYCLES and seen[0] == pytest.approx(STRETCH_CYCLES * 0.001)
+
+
+def test_a_command_source_into_a_chained_velocity_controller_keeps_the_python_loop(write_scenario):
+    """Its upstream owns its reference: the Python loop's edge door refuses the source's value (chained), which
+    the compiled cycle would write."""
+    from jointctl.commands.sources import ConstantSource, SourceFeed
+
+    session = Session(load_scenario(write_scenario(step_scenario(
+        controller_file="nac", start_controllers=["joint_state_controller", "joint1_velocity_controller",
+                                                  "joint1_admittance_controller"], commands={}))))
+    session.run(0.001)
+    velocity = session.manager.controller("joint1_velocity_controller")
+    session.loop.add_input(SourceFeed(ConstantSource(0.1), velocity))
+    from jointctl.compiled.plan import python_reason
+
+    assert python_reason(session.loop) == ("the command source feeds 'joint1_velocity_controller', which takes no "
+                                           "command source")
