@@ -13,9 +13,9 @@ from __future__ import annotations
 from jointctl.control.admittance_controller import AdmittanceController
 from jointctl.jit import kernel
 
-#: The parameters row: the hardware joint index, the velocity controller's reference slot, the sensor's row in the hardware's wrenches and the force axis (0-2), M [kg], K [N/m],
-#: B [N·s/m], the attractor [m], the velocity limit [m/s], the joint state's and the force's sample periods
-#: [s] (0: every cycle).
+#: The parameters row: the hardware joint index, the velocity controller's reference slot, the sensor's row in
+#: the hardware's wrenches and the force axis (0-2), M [kg], K [N/m], B [N·s/m], the attractor [m], the velocity
+#: limit [m/s], the joint state's and the force's sample periods [s] (0: every cycle).
 (JOINT, TARGET, SENSOR, AXIS, MASS, STIFFNESS, DAMPING, ATTRACTOR, MAX_VELOCITY, JOINT_STATE_PERIOD,
  FORCE_PERIOD) = range(11)
 PARAMETERS = 11
@@ -28,8 +28,8 @@ STATE = 6
 def pack_admittance(c: AdmittanceController) -> tuple[list[float], list[float]]:
     """The parameters and state rows of a started admittance controller."""
     hw = c.hardware
-    params = [float(c.index), float(c._target_index), float(hw.sensor_names.index(c.sensor)), float(c.force_index), c.mass, c.stiffness,
-              c.damping, c.attractor, c.max_velocity, c.joint_state_period_s, c.force_period_s]
+    params = [float(c.index), float(c._target_index), float(hw.sensor_names.index(c.sensor)), float(c.force_index),
+              c.mass, c.stiffness, c.damping, c.attractor, c.max_velocity, c.joint_state_period_s, c.force_period_s]
     state = [c.velocity_reference, c.position, c.velocity, c.force, c._next_joint_state_s, c._next_force_s]
     return params, [float(v) for v in state]
 
