@@ -7,6 +7,11 @@ position controllers; without and with the trace recorder. *Cartesian NAC*: the 
 arm7dof_nac_catch scenario (32 s: the admittance controller chained in front of seven velocity
 loops, the weight dropped at 10 s and held), without the recorder; and the controller's own
 update at the run's final state (the cost it adds to every cycle). Runs interleaved.
+
+*Cartesian NAC against MuJoCo stepping alone* (:func:`nac_speeds`): arm7dof_nac_catch's first 3 s
+(the tare, the flange pulled to the attractor) with the trace recorder, on the compiled cycle and on
+the Python loop, against the same arm model stepped by ``mj_step(m, d, nstep=N)`` in one call, its
+controls held at the gravity load of the pre-pose; medians of interleaved runs.
 """
 
 from __future__ import annotations
@@ -70,6 +75,67 @@ def cartesian_nac(scenario) -> tuple[float, float]:
     return rtf, update_us
 
 
+NAC_SECONDS = 3.0
+NAC_REPEATS = 5
+
+
+def stepping_alone(world, seconds: float) -> float:
+    """Real-time factor of MuJoCo stepping ``world``'s model alone, its controls at the initial pose's gravity
+    load (one run)."""
+    m, d = world.model, world.data
+    steps = round(seconds / world.timestep_s)
+    world.reset()
+    mujoco.mj_forward(m, d)
+    actuated = world.actuator_ids >= 0
+    d.ctrl[world.actuator_ids[actuated]] = d.qfrc_bias[world.dof_adr[actuated]]
+    start = time.perf_counter()
+    mujoco.mj_step(m, d, steps)
+    return seconds / (time.perf_counter() - start)
+
+
+def nac_stack(scenario) -> tuple[float, str]:
+    """Real-time factor of ``loop.run`` over the whole scenario, the recorder writing every cycle, and the loop's
+    mode (one run)."""
+    with tempfile.TemporaryDirectory() as out:
+        with Session(scenario, out_dir=out) as session:
+            start = time.perf_counter()
+            session.loop.run(scenario.duration_s)
+            rtf = scenario.duration_s / (time.perf_counter() - start)
+            mode = session.loop.mode
+    return rtf, mode
+
+
+def nac_speeds() -> dict[str, float]:
+    """Medians of the real-time factors of arm7dof_nac_catch's first ``NAC_SECONDS`` on the compiled cycle and on
+    the Python loop, and of MuJoCo stepping the same arm alone; runs interleaved."""
+    compiled = load_scenario("arm7dof_nac_catch", [f"duration_s={NAC_SECONDS}"])
+    python = load_scenario("arm7dof_nac_catch", [f"duration_s={NAC_SECONDS}", "loop=python"])
+    warm = Session(compiled)
+    warm.run(0.01)  # the compiled kernels loaded (from their cache) before anything is timed
+    assert warm.loop.mode == "compiled", warm.loop.mode_reason
+    runs: dict[str, list[float]] = {k: [] for k in ("alone", "compiled", "python")}
+    for _ in range(NAC_REPEATS):
+        runs["alone"].append(stepping_alone(warm.world, NAC_SECONDS))
+        rtf, mode = nac_stack(compiled)
+        assert mode == "compiled"
+        runs["compiled"].append(rtf)
+        runs["python"].append(nac_stack(python)[0])
+    return {k: statistics.median(v) for k, v in runs.items()}
+
+
+def nac_results() -> list[Result]:
+    rtf = nac_speeds()
+    alone, compiled, python = rtf["alone"], rtf["compiled"], rtf["python"]
+    name = "arm7dof Cartesian NAC, first 3 s"
+    return [
+        Result(name, "MuJoCo stepping the arm alone (mj_step nstep), real-time factor", alone, "x"),
+        Result(name, "whole stack (compiled cycle), real-time factor", compiled, "x"),
+        Result(name, "whole stack (compiled) / stepping alone", compiled / alone, "ratio", ">= 0.5",
+               compiled / alone >= 0.5),
+        Result(name, "whole stack (Python loop) / stepping alone", python / alone, "ratio"),
+    ]
+
+
 def run() -> list[Result]:
     scenario = load_scenario("arm7dof_streamer", ["record.every=1"])
     nac_scenario = load_scenario("arm7dof_nac_catch", [])
@@ -92,4 +158,5 @@ def run() -> list[Result]:
                ">= 50", nac_rtf >= 50),
         Result("arm7dof Cartesian NAC", "arm7dof_nac_catch / bare arm loop", nac_rtf / bare_rtf, "ratio"),
         Result("arm7dof Cartesian NAC", "CartesianAdmittanceController.update, per cycle", nac_us, "µs"),
+        *nac_results(),
     ]

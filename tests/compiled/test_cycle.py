@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from jointctl.control.admittance_controller import AdmittanceController
+from jointctl.control.cartesian_admittance_controller import CartesianAdmittanceController
 from jointctl.control.joint_controllers import JointPositionController
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.errors import ExpressionError, PhysicsError
@@ -73,9 +75,25 @@ def assert_same_columns(python: Trace, compiled: Trace) -> None:
             assert np.abs(a[finite] - b[finite]).max() <= RELATIVE * span, name
 
 
+#: What the Cartesian admittance controller keeps after a cycle (the analyses, the tuning page and the next
+#: cycle read them).
+CARTESIAN_STATE = ("velocity_reference", "velocity_command", "tare_force", "_tare", "_tare_sum", "_tare_count",
+                   "sensed_force", "force", "virtual_force", "acceleration", "orientation_error", "velocity",
+                   "torque", "_generalized", "_qd", "jv", "jr", "position", "rotation", "jr_columns", "_dls_rows",
+                   "target_rotation")
+
+
+def _plain(value):
+    return value.tolist() if isinstance(value, np.ndarray) else value
+
+
 def controller_state(c) -> tuple:
     if isinstance(c, JointStateController):
         return c.published, c.latest
+    if isinstance(c, AdmittanceController):
+        return (c.velocity_reference, c.position, c.velocity, c.force, c._next_joint_state_s, c._next_force_s)
+    if isinstance(c, CartesianAdmittanceController):
+        return tuple((name, _plain(getattr(c, name, None))) for name in CARTESIAN_STATE)
     state = (c.pid.i_state, c.clamped_cycles, c.clamped_furthest, c._last_error, c._last_valid, c.reference)
     if isinstance(c, JointPositionController):
         state += (c._last_rate, c._edge_velocity, c.reference_input)
@@ -250,6 +268,69 @@ def test_seven_velocity_loops_with_a_force_sensor_and_a_video_give_the_same_run(
     assert_same(python, compiled)
     assert np.abs(compiled.trace["ft_sensor.torque_z"]).max() > 0  # the plate's inertia loads the sensor
     assert len(compiled.capture.frames) == 15
+
+
+# -- the natural admittance controllers, chained in front of velocity controllers ---------------------------------
+
+NAC = "controllers.joint1_admittance_controller"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("overrides", [
+    [],
+    [f"{NAC}.joint_state_rate_hz=50", f"{NAC}.force_rate_hz=1000"],  # the chapter's node: joint states held
+    [f"{NAC}.joint_state_rate_hz=50", f"{NAC}.force_rate_hz=50"],    # every signal held at 50 Hz
+], ids=["every cycle", "book node", "all at 50 Hz"])
+def test_the_one_dof_admittance_drop_gives_the_same_run_on_both_paths(overrides, tmp_path):
+    """one_dof_nac_drop: the admittance controller's kernel (with its sample-and-hold) writes the chained velocity
+    controller's reference before that controller's kernel reads it, as the manager orders them in Python."""
+    python, compiled = both_paths("one_dof_nac_drop", tmp_path, ["duration_s=3.0", *overrides])
+    assert_same(python, compiled)
+    nac = compiled.session.manager.controller("joint1_admittance_controller")
+    assert compiled.session.manager.references[nac.index] == nac.velocity_reference  # the chain's hand-over
+    assert compiled.trace["ft_sensor.force_z"][-1] < -40.0  # the 10 kg weight rests on the disk
+
+
+ARM_NAC = "controllers.arm7dof_nac_controller"
+
+
+@pytest.mark.parametrize("overrides", [
+    [],
+    [f"{ARM_NAC}.wrist_joints=[]"],  # H diagonal, every joint integrated
+    [f"{ARM_NAC}.tare=false"],
+    [f"{ARM_NAC}.tare_time_s=0", f"{ARM_NAC}.wrist_joints=[6, 4]", f"{ARM_NAC}.max_velocity=0.05"],
+], ids=["chapter", "no wrist", "no tare", "two wrist joints, clamped"])
+def test_the_cartesian_admittance_gives_the_same_run_on_both_paths(overrides, tmp_path):
+    """arm7dof_nac_catch's first second: the tare window, then the flange pulled to the attractor (the wrist
+    holding its orientation) through seven chained velocity controllers."""
+    python, compiled = both_paths("arm7dof_nac_catch", tmp_path, ["duration_s=1.0", *overrides])
+    assert_same(python, compiled)
+    nac = compiled.session.manager.controller("arm7dof_nac_controller")
+    assert np.abs(nac.velocity_command).max() > 1e-3  # the admittance moves the arm
+
+
+@pytest.mark.slow
+def test_the_arm_catches_the_weight_alike_on_both_paths(tmp_path):
+    """arm7dof_nac_catch up to 2 s after the drop at 10 s (the weight lands at 11.1 s)."""
+    python, compiled = both_paths("arm7dof_nac_catch", tmp_path, ["duration_s=12.0"])
+    assert_same(python, compiled)
+    assert compiled.trace["ft_sensor.force_z"].min() < -20.0  # the weight's impact on the plate
+
+
+def test_the_cartesian_admittance_may_alternate_between_the_paths(tmp_path):
+    """The Cartesian controller's state (integrated velocities, tare sums, Jacobians, orientation error...) goes
+    into a compiled run and comes back out: a run split at cycles inside and after the tare window, on alternating
+    paths, is the run on one path."""
+    def alternate(session):
+        compiler = session.loop.compiler
+        for k, part in enumerate((0.05, 0.1003, 0.001, 0.2, 0.3, 0.1)):
+            session.loop.compiler = compiler if k % 2 else None
+            session.run(part)
+
+    python = run_on("arm7dof_nac_catch", "python", tmp_path / "python", ["duration_s=0.8"])
+    mixed = run_on("arm7dof_nac_catch", "auto", tmp_path / "mixed", ["duration_s=0.0487"], before=alternate)
+    assert mixed.session.loop.mode == "compiled"
+    assert_same(python, mixed)
 
 
 # -- events at the same cycles ---------------------------------------------------------------------------------

@@ -34,10 +34,7 @@ def test_a_run_of_built_in_parts_is_compiled(write_scenario):
     ({"controllers": {POSITION: {"feedforward": {"gravity": True}}}},
      "the update ModelFeedforward.update has no compiled form"),
     ({"latency_cycles": 1}, "the hardware (ImperfectHardware) has no compiled form"),
-    ({"controller_file": "nac", "start_controllers": ["joint_state_controller", "joint1_velocity_controller",
-                                                      "joint1_admittance_controller"], "commands": {}},
-     "controller 'joint1_admittance_controller' (AdmittanceController) has no compiled form"),
-], ids=["asked", "user controller", "gravity feed-forward", "late commands", "admittance"])
+], ids=["asked", "user controller", "gravity feed-forward", "late commands"])
 def test_a_part_without_a_compiled_form_keeps_the_python_loop_and_says_which(changes, reason, write_scenario):
     session = Session(load_scenario(write_scenario(step_scenario(**changes))))
     assert mode_of(session) == ("python", reason)
@@ -59,15 +56,32 @@ def test_a_trajectory_executor_keeps_the_python_loop():
                                           "compiled form")
 
 
-def test_a_chained_controller_keeps_the_python_loop(write_scenario):
+def test_a_velocity_controller_chained_to_an_admittance_controller_runs_compiled_after_it(write_scenario):
+    """The manager updates the admittance controller first (upstream first): its compiled form writes the velocity
+    controller's reference, whose watchdog is off while chained, as in Python."""
     session = Session(load_scenario(write_scenario(step_scenario(
         controller_file="nac", start_controllers=["joint_state_controller", "joint1_velocity_controller",
-                                                  "joint1_admittance_controller"], commands={}))))
+                                                  "joint1_admittance_controller"], commands={},
+        controllers={"joint1_velocity_controller": {"command_timeout_s": 0.1}}))))
+    assert mode_of(session) == ("compiled", None)
     velocity = session.manager.controller("joint1_velocity_controller")
+    admittance = session.manager.controller("joint1_admittance_controller")
+    assert [call.__self__ for call in session.manager.update_calls][1:] == [admittance, velocity]
     from jointctl.compiled.plan import controller_reason
 
+    # Its upstream not (yet) among the compiled controllers updated before it: it has no compiled form.
     assert controller_reason(velocity) == ("controller 'joint1_velocity_controller' (JointVelocityController) is "
                                            "chained to 'joint1_admittance_controller'")
+    assert controller_reason(velocity, [admittance]) is None
+
+
+def test_the_cartesian_admittance_runs_compiled_unless_it_uses_the_model_inertia():
+    session = Session(load_scenario("arm7dof_nac_catch"))
+    assert mode_of(session) == ("compiled", None)
+    session = Session(load_scenario("arm7dof_nac_catch", ["controllers.arm7dof_nac_controller.use_model_inertia=true"]))
+    assert mode_of(session) == ("python", "controller 'arm7dof_nac_controller' (CartesianAdmittanceController): "
+                                          "use_model_inertia (a Cholesky solve of M(q) every cycle) has no compiled "
+                                          "form")
 
 
 def test_edges_keep_the_python_loop(write_scenario):
@@ -135,3 +149,20 @@ def test_a_hook_added_while_a_compiled_run_goes_takes_it_on_in_python_from_the_n
     session.run()
     assert session.loop.mode == "python" and "changed" in session.loop.mode_reason
     assert len(seen) == 5000 - STRETCH_CYCLES and seen[0] == pytest.approx(STRETCH_CYCLES * 0.001)
+
+
+def test_a_command_source_into_a_chained_velocity_controller_keeps_the_python_loop(write_scenario):
+    """Its upstream owns its reference: the Python loop's edge door refuses the source's value (chained), which
+    the compiled cycle would write."""
+    from jointctl.commands.sources import ConstantSource, SourceFeed
+
+    session = Session(load_scenario(write_scenario(step_scenario(
+        controller_file="nac", start_controllers=["joint_state_controller", "joint1_velocity_controller",
+                                                  "joint1_admittance_controller"], commands={}))))
+    session.run(0.001)
+    velocity = session.manager.controller("joint1_velocity_controller")
+    session.loop.add_input(SourceFeed(ConstantSource(0.1), velocity))
+    from jointctl.compiled.plan import python_reason
+
+    assert python_reason(session.loop) == ("the command source feeds 'joint1_velocity_controller', which takes no "
+                                           "command source")

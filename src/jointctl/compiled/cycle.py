@@ -4,7 +4,8 @@
 1. inputs: each command source's sample fed to its controller's reference (``sources_kernel``,
    ``joint_controllers_kernel``);
 2. ``read`` (``mujoco_kernel``);
-3. the controllers' updates in the manager's order (``joint_state_kernel``, ``joint_controllers_kernel``);
+3. the controllers' updates in the manager's order, upstream first (``joint_state_kernel``,
+   ``joint_controllers_kernel``, ``admittance_controller_kernel``, ``cartesian_admittance_controller_kernel``);
 4. the check for a non-finite command (the loop's: the sum of the commands is not a number);
 5. ``write``;
 6. observers: the trace row (``trace_kernel``), a video frame (``video_kernel``), the spawned objects' poses
@@ -18,6 +19,8 @@ controllers in Python and finishes that cycle there) or after a step that raised
 from __future__ import annotations
 
 from jointctl.commands.sources_kernel import source_sample
+from jointctl.control.admittance_controller_kernel import admittance_update
+from jointctl.control.cartesian_admittance_controller_kernel import cartesian_update
 from jointctl.control.joint_controllers_kernel import feed_position, feed_velocity, position_update, velocity_update
 from jointctl.control.joint_state_kernel import joint_state_update
 from jointctl.hardware.mujoco_kernel import mujoco_advance, mujoco_read, mujoco_write
@@ -28,6 +31,8 @@ from jointctl.visuals.video_kernel import frame_due
 
 #: Controller kinds.
 JOINT_STATE, POSITION, VELOCITY = range(3)
+#: Controller kinds: the natural admittance controllers (chained in front of velocity controllers).
+ADMITTANCE, CARTESIAN_ADMITTANCE = 10, 11
 #: How a stretch ended (``out[STATUS]``): every cycle ran; a cycle's commands were not finite (the cycle
 #: ``out[CYCLE]`` is updated, not written); a step raised a warning (the cycle ``out[CYCLE]`` stepped).
 DONE, NOT_FINITE, WARNED = range(3)
@@ -45,8 +50,13 @@ def run_cycles(k0, n, period_s,
                reference_accelerations,
                trace_on, trace_state, rows, frames_on, frame_state, frames, frame_times,
                track_on, track_state, poses, pose_times, xpos, xquat, bodies,
-               out):
-    """Cycles ``k0`` to ``k0 + n - 1`` at ``period_s`` [s] (see the module docstring); ``out`` says how it ended."""
+               out,
+               nac_index, nac_parameters, nac_state, nac_addresses, nac_qpos, nac_qpos_adr, nac_dof_adr, nac_jacp,
+               nac_jacr, nac_xpos, nac_xmat, nac_q, nac_jv, nac_jr):
+    """Cycles ``k0`` to ``k0 + n - 1`` at ``period_s`` [s] (see the module docstring); ``out`` says how it ended.
+
+    The ``nac_`` arrays are the Cartesian admittance controller's (at most one; see
+    :class:`~jointctl.control.cartesian_admittance_controller_kernel.CartesianArrays`), placeholders without one."""
     kept = 0
     framed = 0
     posed = 0
@@ -71,6 +81,12 @@ def run_cycles(k0, n, period_s,
             elif kind == VELOCITY:
                 velocity_update(parameters, state, c, reference_velocities, references, velocity, command, t,
                                 period_s)
+            elif kind == ADMITTANCE:
+                admittance_update(parameters, state, c, t, period_s, position, velocity, wrench, reference_velocities)
+            elif kind == CARTESIAN_ADMITTANCE:
+                cartesian_update(nac_index, nac_parameters, nac_state, nac_addresses, nac_qpos, nac_qpos_adr,
+                                 nac_dof_adr, nac_jacp, nac_jacr, nac_xpos, nac_xmat, nac_q, nac_jv, nac_jr, t,
+                                 period_s, position, velocity, wrench, reference_velocities)
             else:
                 joint_state_update(parameters, state, c, latest, t, position, velocity, effort)
         total = 0.0

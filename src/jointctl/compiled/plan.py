@@ -6,16 +6,19 @@ stays in Python (the first part without one). Parts with a compiled form:
 
 - the hardware: :class:`~jointctl.hardware.mujoco_hardware.MujocoHardware` (not paced to the wall clock);
 - controllers: effort ``JointPositionController`` (without the model feed-forward, not chained),
-  ``JointVelocityController`` (with its command watchdog; not chained), ``JointStateController`` (without
-  subscribers);
+  ``JointVelocityController`` (with its command watchdog, or chained to an admittance controller updated before
+  it), ``JointStateController`` (without subscribers), the natural admittance controllers
+  :class:`~jointctl.control.admittance_controller.AdmittanceController` and
+  :class:`~jointctl.control.cartesian_admittance_controller.CartesianAdmittanceController` (one, with H diagonal:
+  not ``use_model_inertia``);
 - inputs: a :class:`~jointctl.commands.sources.SourceFeed` of a constant, step, sine, chirp or expression source
   into one of those (an expression evaluated in Python a stretch ahead, a message at a time);
   the scenario's :class:`~jointctl.runtime.spawner.ObjectSpawner` (run in Python at its cycles, between stretches);
 - observers: the :class:`~jointctl.recording.trace.TraceRecorder`, a :class:`~jointctl.visuals.video.FrameCapture`,
   ``run.mcap``'s :class:`~jointctl.recording.mcap_record.ObjectTrack`.
 
-Everything else (a user's controller, the tuning page, ROS, a trajectory executor, admittance control, goals,
-noisy or late hardware) keeps the Python loop. A compiled run takes the Python objects' state
+Everything else (a user's controller, the tuning page, ROS, a trajectory executor, goals, noisy or late
+hardware) keeps the Python loop. A compiled run takes the Python objects' state
 as it is at the start of ``run`` and puts it back at its end, so runs may alternate between the two paths.
 """
 
@@ -24,6 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 from jointctl.commands.sources import ChirpSource, ConstantSource, ExpressionSource, SineSource, SourceFeed, StepSource
+from jointctl.control.admittance_controller import AdmittanceController
+from jointctl.control.cartesian_admittance_controller import CartesianAdmittanceController
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.hardware.mujoco_hardware import MujocoHardware
@@ -36,6 +41,8 @@ from jointctl.visuals.video import FrameCapture
 STRETCH_CYCLES = 2000
 
 _CONTROLLERS = (JointPositionController, JointVelocityController, JointStateController)
+#: Controllers with a compiled form that write velocity controllers' references (chained in front of them).
+_UPSTREAM = (AdmittanceController, CartesianAdmittanceController)
 _SOURCES = (ConstantSource, StepSource, SineSource, ChirpSource, ExpressionSource)
 
 
@@ -46,9 +53,15 @@ def _describe(hook) -> str:
     return getattr(hook, "__qualname__", None) or type(hook).__name__
 
 
-def controller_reason(controller) -> str | None:
-    """Why ``controller`` has no compiled form (None when it has one)."""
+def controller_reason(controller, running=()) -> str | None:
+    """Why ``controller`` has no compiled form (None when it has one); ``running``: the controllers updated before
+    it that have one (a chained velocity controller has one when its upstream is among them)."""
     kind = type(controller)
+    if kind in _UPSTREAM:
+        return _upstream_reason(controller)
+    if kind is JointVelocityController and controller.upstream is not None and any(
+            type(c) in _UPSTREAM and c.name == controller.upstream for c in running):
+        return None  # chained: its reference written by the upstream's kernel first, its watchdog off
     if kind not in _CONTROLLERS:
         name = getattr(controller, "name", None)
         if name is None:  # an update of the manager's own (the model feed-forward)
@@ -61,6 +74,14 @@ def controller_reason(controller) -> str | None:
         return f"{what}: its model feed-forward has no compiled form"
     if kind is JointStateController and controller._subscribers:
         return f"{what} has subscribers"
+    return None
+
+
+def _upstream_reason(controller) -> str | None:
+    if type(controller) is CartesianAdmittanceController:
+        from jointctl.control.cartesian_admittance_controller_kernel import cartesian_reason
+
+        return cartesian_reason(controller)
     return None
 
 
@@ -78,10 +99,12 @@ def python_reason(loop) -> str | None:
         owner = getattr(call, "__self__", None)
         if owner is None or getattr(call, "__func__", None) is not type(owner).update:
             return f"the update {_describe(call)} has no compiled form"
-        reason = controller_reason(owner)
+        reason = controller_reason(owner, running)
         if reason is not None:
             return reason
         running.append(owner)
+    if sum(type(c) is CartesianAdmittanceController for c in running) > 1:
+        return "the loop has more than one CartesianAdmittanceController"
     for hook in loop.inputs:
         if type(hook) is ObjectSpawner and hook.simulation is hw.simulation:
             continue
@@ -91,6 +114,8 @@ def python_reason(loop) -> str | None:
             return f"the command source {type(hook.source).__name__} of {hook.controller.name!r} has no compiled form"
         if hook.controller not in running or type(hook.controller) is JointStateController:
             return f"the command source feeds {hook.controller.name!r}, which is not running"
+        if type(hook.controller) in _UPSTREAM or hook.controller.upstream is not None:
+            return f"the command source feeds {hook.controller.name!r}, which takes no command source"
     kinds = [type(hook) for hook in loop.observers]
     for once in (TraceRecorder, FrameCapture, ObjectTrack):
         if kinds.count(once) > 1:
@@ -143,6 +168,9 @@ class CompiledRun:
         from jointctl.commands.sources_kernel import PARAMETERS as SOURCE_PARAMETERS
         from jointctl.commands.sources_kernel import STATE as SOURCE_STATE
         from jointctl.commands.sources_kernel import pack_source
+        from jointctl.control.admittance_controller_kernel import PARAMETERS as ADMITTANCE_PARAMETERS
+        from jointctl.control.admittance_controller_kernel import STATE as ADMITTANCE_STATE
+        from jointctl.control.admittance_controller_kernel import pack_admittance
         from jointctl.control.joint_controllers_kernel import PARAMETERS, STATE, pack_position, pack_velocity
         from jointctl.control.joint_state_kernel import pack_joint_state
         from jointctl.hardware.mujoco_kernel import MujocoArrays
@@ -157,14 +185,18 @@ class CompiledRun:
         self.controllers = [call.__self__ for call in manager.update_calls]
         n = len(self.controllers)
         self.kinds = np.zeros(n, dtype=np.int64)
-        self.parameters = np.zeros((n, PARAMETERS))
-        self.state = np.zeros((n, STATE))
+        self.parameters = np.zeros((n, max(PARAMETERS, ADMITTANCE_PARAMETERS)))
+        self.state = np.zeros((n, max(STATE, ADMITTANCE_STATE)))
         self.latest = np.zeros((n, 3, joints))
         for k, c in enumerate(self.controllers):
             if type(c) is JointPositionController:
                 kind, (params, state) = cycle.POSITION, pack_position(c)
             elif type(c) is JointVelocityController:
                 kind, (params, state) = cycle.VELOCITY, pack_velocity(c)
+            elif type(c) is AdmittanceController:
+                kind, (params, state) = cycle.ADMITTANCE, pack_admittance(c)
+            elif type(c) is CartesianAdmittanceController:
+                kind, (params, state) = cycle.CARTESIAN_ADMITTANCE, ([], [])
             else:
                 kind, (params, state) = cycle.JOINT_STATE, pack_joint_state(c)
             self.kinds[k] = kind
@@ -201,6 +233,25 @@ class CompiledRun:
         self.poses = np.zeros((samples, len(self.specs), 7))
         self.pose_times = np.zeros(samples)
         self.xpos, self.xquat = world.data.xpos, world.data.xquat
+        self._pack_cartesian()
+
+    def _pack_cartesian(self) -> None:
+        """The Cartesian admittance controller's arrays (placeholders of the same types without one)."""
+        from jointctl.control.cartesian_admittance_controller_kernel import (INDEX_ROWS, PARAMETER_ROWS, STATE_ROWS,
+                                                                            CartesianArrays)
+
+        c = next((c for c in self.controllers if type(c) is CartesianAdmittanceController), None)
+        self.cartesian = CartesianArrays(c) if c is not None else None
+        if self.cartesian is not None:
+            a, d = self.cartesian, self.cartesian.dynamics
+            self.nac_arrays = (a.index, a.parameters, a.state, d.addresses, d.qpos, d.qpos_adr, d.dof_adr, d.jacp,
+                               d.jacr, d.xpos, d.xmat, a.q, a.jv, a.jr)
+        else:
+            none = np.zeros(0, dtype=np.int64)
+            self.nac_arrays = (np.zeros((INDEX_ROWS, 9), dtype=np.int64), np.zeros((PARAMETER_ROWS, 9)),
+                               np.zeros((STATE_ROWS, 9)), np.zeros(2, dtype=np.uintp), np.zeros(0), none, none,
+                               np.zeros((3, 0)), np.zeros((3, 0)), np.zeros((0, 3)), np.zeros((0, 9)), np.zeros(0),
+                               np.zeros((3, 0)), np.zeros((3, 0)))
 
     def _parts_unchanged(self) -> bool:
         loop = self.loop
@@ -251,7 +302,7 @@ class CompiledRun:
                     self.recorder is not None, self.trace_state, self.rows,
                     self.capture is not None, self.frame_state, self.frames, self.frame_times,
                     self.track is not None, self.track_state, self.poses, self.pose_times, self.xpos, self.xquat,
-                    self.bodies, out)
+                    self.bodies, out, *self.nac_arrays)
                 stopped_at, status = int(out[cycle.CYCLE]), int(out[cycle.STATUS])
                 self._hand_over(int(out[cycle.ROWS]), int(out[cycle.FRAMES]), int(out[cycle.POSES]))
                 k = stopped_at
@@ -288,6 +339,7 @@ class CompiledRun:
     def unpack(self) -> None:
         """Put every part's state back into its Python object."""
         from jointctl.commands.sources_kernel import unpack_source
+        from jointctl.control.admittance_controller_kernel import unpack_admittance
         from jointctl.control.joint_controllers_kernel import unpack_position, unpack_velocity
         from jointctl.control.joint_state_kernel import unpack_joint_state
         from jointctl.recording.trace_kernel import unpack_trace
@@ -299,6 +351,10 @@ class CompiledRun:
                 unpack_position(c, state)
             elif kind == self.cycle.VELOCITY:
                 unpack_velocity(c, state)
+            elif kind == self.cycle.ADMITTANCE:
+                unpack_admittance(c, state)
+            elif kind == self.cycle.CARTESIAN_ADMITTANCE:
+                self.cartesian.unpack()
             else:
                 unpack_joint_state(c, state, latest, names)
         self.loop.manager.references[:] = self.references.tolist()

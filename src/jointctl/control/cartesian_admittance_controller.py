@@ -272,7 +272,6 @@ class CartesianAdmittanceController(Controller):
         self._generalized = np.zeros(n)      # τ - c·q̇ [N·m]
         arm_then_wrist = self.arm_joints + self.wrist_joints
         self._joint_order = [arm_then_wrist.index(k) for k in range(n)]  # where joint k is in that list
-        self._error_rotation = np.zeros((3, 3))
         limit = self.max_velocity.tolist()
         self._arm_limits = [(-limit[k], limit[k]) for k in self.arm_joints]
         self._wrist_limits = [(-limit[k], limit[k]) for k in self.wrist_joints]
@@ -376,7 +375,14 @@ class CartesianAdmittanceController(Controller):
             self._hand_over([0.0] * len(self.joint_names))
             return
         qd, jv = self._qd, self.jv
-        vx, vy, vz = np.dot(jv, qd, out=self.velocity).tolist()
+        # Products and sums one by one, in a fixed order (not BLAS's, which may pair or fuse them otherwise):
+        # the compiled cycle's kernel does the same operations.
+        q = qd.tolist()
+        jx, jy, jz = jv.tolist()
+        vx, vy, vz = jx[0] * q[0], jy[0] * q[0], jz[0] * q[0]  # v = Jv·q̇
+        for j in range(1, len(q)):
+            vx += jx[j] * q[j]; vy += jy[j] * q[j]; vz += jz[j] * q[j]  # noqa: E702
+        self.velocity[:] = vx, vy, vz
         px, py, pz = self.position.tolist()
         (sx, sy, sz), (tx, ty, tz) = self.sensed_force, self._tare
         self.force = (sx - tx, sy - ty, sz - tz)
@@ -384,7 +390,8 @@ class CartesianAdmittanceController(Controller):
         f = self.virtual_force = [kx * (ax - px) - bx * vx + (sx - tx),
                                   ky * (ay - py) - by * vy + (sy - ty),
                                   kz * (az - pz) - bz * vz + (sz - tz)]
-        np.dot(f, jv, out=self.torque)
+        f0, f1, f2 = f
+        self.torque[:] = [f0 * x + f1 * y + f2 * z for x, y, z in zip(jx, jy, jz)]  # τ = Jvᵀ·f
         generalized = np.multiply(self.joint_damping, qd, out=self._generalized)
         np.subtract(self.torque, generalized, out=generalized)  # τ - c·q̇, per joint
         if self.use_model_inertia:
@@ -479,8 +486,11 @@ class CartesianAdmittanceController(Controller):
     def _wrist_command(self, ref: list[float]) -> list[float]:
         """``q̇_W = Jr_W⁺·(k·e - Jr_A·q̇_A)``, within the limits: the flange's rotation by the arm joints
         cancelled, any orientation error e decaying at the wrist gain k."""
-        (m0, m1, m2), (m3, m4, m5), (m6, m7, m8) = np.dot(self.target_rotation, self.rotation.T,
-                                                          out=self._error_rotation).tolist()
+        (t0, t1, t2), (t3, t4, t5), (t6, t7, t8) = self.target_rotation.tolist()
+        (r0, r1, r2), (r3, r4, r5), (r6, r7, r8) = self.rotation.tolist()
+        m0, m1, m2 = t0 * r0 + t1 * r1 + t2 * r2, t0 * r3 + t1 * r4 + t2 * r5, t0 * r6 + t1 * r7 + t2 * r8  # R_0·Rᵀ
+        m3, m4, m5 = t3 * r0 + t4 * r1 + t5 * r2, t3 * r3 + t4 * r4 + t5 * r5, t3 * r6 + t4 * r7 + t5 * r8
+        m6, m7, m8 = t6 * r0 + t7 * r1 + t8 * r2, t6 * r3 + t7 * r4 + t8 * r5, t6 * r6 + t7 * r7 + t8 * r8
         e0, e1, e2 = self.orientation_error = _rotation_vector(m0, m1, m2, m3, m4, m5, m6, m7, m8)
         k, jr = self.wrist_gain, self.jr_columns
         b0, b1, b2 = k * e0, k * e1, k * e2
