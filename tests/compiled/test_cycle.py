@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import yaml
 import pytest
 
 from jointctl.control.joint_controllers import JointPositionController
@@ -251,3 +252,38 @@ def test_a_stop_request_ends_a_compiled_run_after_its_stretch(write_scenario):
     assert session.loop.run() == 0 and session.loop.mode == "compiled"
     session.loop.compiler = original
     assert session.loop.run(cycles=STRETCH_CYCLES + 7) == STRETCH_CYCLES + 7
+
+
+# -- the model feed-forward --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("terms", ["{gravity: true}", "{gravity: true, damping: true, inertia: true}"])
+def test_the_model_feed_forward_gives_the_same_run(terms, write_scenario, tmp_path):
+    """Seven position controllers adding g(q) (and M(q)·q̈_ref, 0 for plain commands, and b·q̇_ref) from the
+    robot model: the manager's feed-forward update runs compiled before its first user."""
+    names = [f"joint{k}_position_controller" for k in range(7)]
+    scenario = {
+        "name": "arm_positions", "robot": "arm7dof", "controller_file": "position", "gravity": -9.81,
+        "start_controllers": ["joint_state_controller", *names], "duration_s": 0.4, "record": {"every": 2},
+        "initial_positions": {"joint1": 0.5, "joint3": -1.0},
+        "controllers": {n: {"feedforward": yaml.safe_load(terms)} for n in names},
+        "commands": {names[1]: {"type": "step", "from": 0.5, "to": 0.7, "at": 0.1, "ramp_s": 0.1},
+                     names[3]: {"type": "sine", "amplitude": 0.1, "frequency_hz": 2.0, "offset": -1.0,
+                                "rate_hz": 1000}},
+    }
+    python, compiled = both_paths(write_scenario(scenario), tmp_path)
+    assert_same(python, compiled)
+    ff_p, ff_c = python.session.manager.context.feedforward, compiled.session.manager.context.feedforward
+    assert ff_p.gravity == ff_c.gravity and ff_p.inertia == ff_c.inertia
+    # gravity holds the arm: joint1's g(q) at 0.7 rad is tens of N·m, and its command carries it
+    assert abs(ff_c.gravity[1]) > 10.0
+
+
+def test_the_one_dof_trajectory_robot_holds_with_its_gravity_feed_forward(tmp_path):
+    """one_dof_trajectory's position controller (gravity, damping and inertia feed-forward), held by a plain
+    command (no executor, no goal)."""
+    overrides = ["goals=[]", "duration_s=0.5",
+                 "start_controllers=[joint_state_controller, joint1_position_controller]",
+                 "commands={joint1_position_controller: {type: step, from: -0.5, to: -0.3, at: 0.1}}"]
+    python, compiled = both_paths("one_dof_trajectory", tmp_path, overrides)
+    assert_same(python, compiled)
+    assert compiled.session.manager.controller("joint1_position_controller")._gravity

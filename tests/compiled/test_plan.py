@@ -26,12 +26,15 @@ def test_a_run_of_built_in_parts_is_compiled(write_scenario):
     assert mode_of(Session(load_scenario(write_scenario(step_scenario())))) == ("compiled", None)
 
 
+def test_the_model_feed_forward_is_compiled(write_scenario):
+    changes = {"controllers": {POSITION: {"feedforward": {"gravity": True, "inertia": True}}}}
+    assert mode_of(Session(load_scenario(write_scenario(step_scenario(**changes))))) == ("compiled", None)
+
+
 @pytest.mark.parametrize(("changes", "reason"), [
     ({"loop": "python"}, "the scenario asks for it (loop: python)"),
     ({"controllers": {POSITION: {"type": FAULTY_TYPE, "fail_above": 10.0}}},
      f"controller '{POSITION}' (FaultyPositionController) has no compiled form"),
-    ({"controllers": {POSITION: {"feedforward": {"gravity": True}}}},
-     "the update ModelFeedforward.update has no compiled form"),
     ({"commands": {POSITION: {"type": "expression", "expression": "-0.3"}}},
      f"the command source ExpressionSource of '{POSITION}' has no compiled form"),
     ({"latency_cycles": 1}, "the hardware (ImperfectHardware) has no compiled form"),
@@ -41,7 +44,7 @@ def test_a_run_of_built_in_parts_is_compiled(write_scenario):
     ({"controller_file": "velocity", "start_controllers": ["joint_state_controller", "joint1_velocity_controller"],
       "controllers": {"joint1_velocity_controller": {"command_timeout_s": 0.1}}, "commands": {}},
      "controller 'joint1_velocity_controller' (JointVelocityController): its command watchdog has no compiled form"),
-], ids=["asked", "user controller", "gravity feed-forward", "expression", "late commands", "admittance",
+], ids=["asked", "user controller", "expression", "late commands", "admittance",
         "watchdog"])
 def test_a_part_without_a_compiled_form_keeps_the_python_loop_and_says_which(changes, reason, write_scenario):
     session = Session(load_scenario(write_scenario(step_scenario(**changes))))

@@ -4,7 +4,8 @@
 1. inputs: each command source's sample fed to its controller's reference (``sources_kernel``,
    ``joint_controllers_kernel``);
 2. ``read`` (``mujoco_kernel``);
-3. the controllers' updates in the manager's order (``joint_state_kernel``, ``joint_controllers_kernel``);
+3. the controllers' updates in the manager's order (``joint_state_kernel``, ``joint_controllers_kernel``), the
+   model feed-forward among them where the manager runs it (``context_kernel``);
 4. the check for a non-finite command (the loop's: the sum of the commands is not a number);
 5. ``write``;
 6. observers: the trace row (``trace_kernel``), a video frame (``video_kernel``), the spawned objects' poses
@@ -18,6 +19,7 @@ controllers in Python and finishes that cycle there) or after a step that raised
 from __future__ import annotations
 
 from jointctl.commands.sources_kernel import source_sample
+from jointctl.control.context_kernel import feedforward_update
 from jointctl.control.joint_controllers_kernel import feed_position, feed_velocity, position_update, velocity_update
 from jointctl.control.joint_state_kernel import joint_state_update
 from jointctl.hardware.mujoco_kernel import mujoco_advance, mujoco_read, mujoco_write
@@ -26,8 +28,9 @@ from jointctl.recording.mcap_record_kernel import track_poses
 from jointctl.recording.trace_kernel import trace_due, trace_row
 from jointctl.visuals.video_kernel import frame_due
 
-#: Controller kinds.
+#: Controller kinds (and the manager's own update: the model feed-forward).
 JOINT_STATE, POSITION, VELOCITY = range(3)
+FEEDFORWARD = 3
 #: How a stretch ended (``out[STATUS]``): every cycle ran; a cycle's commands were not finite (the cycle
 #: ``out[CYCLE]`` is updated, not written); a step raised a warning (the cycle ``out[CYCLE]`` stepped).
 DONE, NOT_FINITE, WARNED = range(3)
@@ -45,7 +48,9 @@ def run_cycles(k0, n, period_s,
                reference_accelerations,
                trace_on, trace_state, rows, frames_on, frame_state, frames, frame_times,
                track_on, track_state, poses, pose_times, xpos, xquat, bodies,
-               out):
+               out,
+               ff_addresses, ff_qpos, ff_qpos_adr, ff_tau, ff_qdd_full, ff_dof_adr, ff_to_model, ff_q, ff_qdd,
+               ff_wants_inertia, ff_model_out, ff_gravity, ff_inertia):
     """Cycles ``k0`` to ``k0 + n - 1`` at ``period_s`` [s] (see the module docstring); ``out`` says how it ended."""
     kept = 0
     framed = 0
@@ -67,12 +72,16 @@ def run_cycles(k0, n, period_s,
             kind = kinds[c]
             if kind == POSITION:
                 position_update(parameters, state, c, reference_positions, reference_velocities, references,
-                                position, velocity, command, period_s)
+                                position, velocity, command, period_s, ff_gravity, ff_inertia)
             elif kind == VELOCITY:
                 velocity_update(parameters, state, c, reference_velocities, references, velocity, command,
                                 period_s)
-            else:
+            elif kind == JOINT_STATE:
                 joint_state_update(parameters, state, c, latest, t, position, velocity, effort)
+            elif kind == FEEDFORWARD:
+                feedforward_update(ff_addresses, ff_qpos, ff_qpos_adr, ff_tau, ff_qdd_full, ff_dof_adr, ff_to_model,
+                                   ff_q, ff_qdd, ff_wants_inertia, ff_model_out, position, reference_accelerations,
+                                   ff_gravity, ff_inertia)
         total = 0.0
         for j in range(joints):
             total += command[j]

@@ -5,7 +5,9 @@ run, it returns a :class:`CompiledRun` when every part of the cycle has a compil
 stays in Python (the first part without one). Parts with a compiled form:
 
 - the hardware: :class:`~jointctl.hardware.mujoco_hardware.MujocoHardware` (not paced to the wall clock);
-- controllers: effort ``JointPositionController`` (without the model feed-forward, not chained),
+- controllers: effort ``JointPositionController`` (with any feed-forward: damping, and the model's gravity and
+  inertia, the manager's :class:`~jointctl.control.context.ModelFeedforward` update running compiled too; not
+  chained),
   ``JointVelocityController`` (without a command watchdog, not chained), ``JointStateController`` (without
   subscribers);
 - inputs: a :class:`~jointctl.commands.sources.SourceFeed` of a constant, step or sine source into one of those;
@@ -23,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from jointctl.commands.sources import ConstantSource, SineSource, SourceFeed, StepSource
+from jointctl.control.context import ModelFeedforward
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.hardware.mujoco_hardware import MujocoHardware
@@ -56,8 +59,6 @@ def controller_reason(controller) -> str | None:
     what = f"controller {controller.name!r} ({kind.__name__})"
     if controller.upstream is not None:
         return f"{what} is chained to {controller.upstream!r}"
-    if kind is JointPositionController and set(controller.feedforward_terms) - {"damping"}:
-        return f"{what}: its model feed-forward has no compiled form"
     if kind is JointVelocityController and controller.command_timeout_s is not None:
         return f"{what}: its command watchdog has no compiled form"
     if kind is JointStateController and controller._subscribers:
@@ -79,6 +80,9 @@ def python_reason(loop) -> str | None:
         owner = getattr(call, "__self__", None)
         if owner is None or getattr(call, "__func__", None) is not type(owner).update:
             return f"the update {_describe(call)} has no compiled form"
+        if type(owner) is ModelFeedforward and loop.manager.context.has_feedforward \
+                and owner is loop.manager.context.feedforward and owner.context.hardware is hw:
+            continue
         reason = controller_reason(owner)
         if reason is not None:
             return reason
@@ -144,6 +148,7 @@ class CompiledRun:
         from jointctl.commands.sources_kernel import PARAMETERS as SOURCE_PARAMETERS
         from jointctl.commands.sources_kernel import STATE as SOURCE_STATE
         from jointctl.commands.sources_kernel import pack_source
+        from jointctl.control.context_kernel import FeedforwardArrays
         from jointctl.control.joint_controllers_kernel import PARAMETERS, STATE, pack_position, pack_velocity
         from jointctl.control.joint_state_kernel import pack_joint_state
         from jointctl.hardware.mujoco_kernel import MujocoArrays
@@ -161,7 +166,12 @@ class CompiledRun:
         self.parameters = np.zeros((n, PARAMETERS))
         self.state = np.zeros((n, STATE))
         self.latest = np.zeros((n, 3, joints))
+        self.feedforward = FeedforwardArrays(next((c for c in self.controllers if type(c) is ModelFeedforward),
+                                                  None))
         for k, c in enumerate(self.controllers):
+            if type(c) is ModelFeedforward:
+                self.kinds[k] = cycle.FEEDFORWARD
+                continue
             if type(c) is JointPositionController:
                 kind, (params, state) = cycle.POSITION, pack_position(c)
             elif type(c) is JointVelocityController:
@@ -249,7 +259,7 @@ class CompiledRun:
                     self.recorder is not None, self.trace_state, self.rows,
                     self.capture is not None, self.frame_state, self.frames, self.frame_times,
                     self.track is not None, self.track_state, self.poses, self.pose_times, self.xpos, self.xquat,
-                    self.bodies, out)
+                    self.bodies, out, *self._feedforward_arguments())
                 stopped_at, status = int(out[cycle.CYCLE]), int(out[cycle.STATUS])
                 self._hand_over(int(out[cycle.ROWS]), int(out[cycle.FRAMES]), int(out[cycle.POSES]))
                 k = stopped_at
@@ -261,6 +271,11 @@ class CompiledRun:
         if status == cycle.WARNED:
             loop.hardware._check_warnings()  # raises the warning, as the Python advance does
         return k, status == cycle.NOT_FINITE
+
+    def _feedforward_arguments(self) -> tuple:
+        ff = self.feedforward
+        return (ff.addresses, ff.qpos, ff.qpos_adr, ff.tau, ff.qdd_full, ff.dof_adr, ff.to_model, ff.q, ff.qdd,
+                ff.wants_inertia, ff.model_out, ff.gravity, ff.inertia)
 
     def _hand_over(self, rows: int, frames: int, poses: int) -> None:
         """Give the observers what a stretch kept: trace rows, video frames, object poses."""
@@ -286,7 +301,9 @@ class CompiledRun:
         self.hw.unpack()
         names = self.hw.hardware.joint_names
         for c, kind, state, latest in zip(self.controllers, self.kinds, self.state, self.latest):
-            if kind == self.cycle.POSITION:
+            if kind == self.cycle.FEEDFORWARD:
+                self.feedforward.unpack()
+            elif kind == self.cycle.POSITION:
                 unpack_position(c, state)
             elif kind == self.cycle.VELOCITY:
                 unpack_velocity(c, state)
