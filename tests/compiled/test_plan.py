@@ -51,10 +51,9 @@ def test_a_part_without_a_compiled_form_keeps_the_python_loop_and_says_which(cha
     assert mode_of(session) == ("python", reason)
 
 
-def test_a_trajectory_executor_keeps_the_python_loop():
+def test_a_trajectory_executor_and_its_goals_are_compiled():
     session = Session(load_scenario("one_dof_trajectory"))
-    assert mode_of(session) == ("python", "controller 'joint1_trajectory_controller' (TrajectoryExecutor) has no "
-                                          "compiled form")
+    assert mode_of(session) == ("compiled", None)
 
 
 def test_a_chained_controller_keeps_the_python_loop(write_scenario):

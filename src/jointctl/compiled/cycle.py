@@ -5,7 +5,8 @@
    ``joint_controllers_kernel``);
 2. ``read`` (``mujoco_kernel``);
 3. the controllers' updates in the manager's order (``joint_state_kernel``, ``joint_controllers_kernel``), the
-   model feed-forward among them where the manager runs it (``context_kernel``);
+   model feed-forward among them where the manager runs it (``context_kernel``), a trajectory executor first
+   (``executor_kernel``);
 4. the check for a non-finite command (the loop's: the sum of the commands is not a number);
 5. ``write``;
 6. observers: the trace row (``trace_kernel``), a video frame (``video_kernel``), the spawned objects' poses
@@ -13,7 +14,8 @@
 7. ``advance``: the physics steps in C, and the warning check.
 
 The stretch stops early at a cycle whose commands are not finite (after its updates: the loop fails the
-controllers in Python and finishes that cycle there) or after a step that raised a warning.
+controllers in Python and finishes that cycle there), after a step that raised a warning, or after a cycle whose
+trajectory supervision decided the goal's end (``executor_kernel``: the Python ends the goal).
 """
 
 from __future__ import annotations
@@ -26,14 +28,19 @@ from jointctl.hardware.mujoco_kernel import mujoco_advance, mujoco_read, mujoco_
 from jointctl.jit import kernel
 from jointctl.recording.mcap_record_kernel import track_poses
 from jointctl.recording.trace_kernel import trace_due, trace_row
+from jointctl.trajectory.executor_kernel import executor_update
 from jointctl.visuals.video_kernel import frame_due
 
 #: Controller kinds (and the manager's own update: the model feed-forward).
 JOINT_STATE, POSITION, VELOCITY = range(3)
 FEEDFORWARD = 3
+TRAJECTORY = 4
 #: How a stretch ended (``out[STATUS]``): every cycle ran; a cycle's commands were not finite (the cycle
 #: ``out[CYCLE]`` is updated, not written); a step raised a warning (the cycle ``out[CYCLE]`` stepped).
 DONE, NOT_FINITE, WARNED = range(3)
+#: ... or the trajectory executor's supervision decided its goal's end at cycle ``out[CYCLE] - 1`` (run whole: the
+#: Python ends the goal).
+DECIDED = 3
 #: ``out``: where the stretch ended, how, and the trace rows, video frames and object poses it kept.
 CYCLE, STATUS, ROWS, FRAMES, POSES = range(5)
 
@@ -50,13 +57,16 @@ def run_cycles(k0, n, period_s,
                track_on, track_state, poses, pose_times, xpos, xquat, bodies,
                out,
                ff_addresses, ff_qpos, ff_qpos_adr, ff_tau, ff_qdd_full, ff_dof_adr, ff_to_model, ff_q, ff_qdd,
-               ff_wants_inertia, ff_model_out, ff_gravity, ff_inertia):
+               ff_wants_inertia, ff_model_out, ff_gravity, ff_inertia,
+               ex_parameters, ex_state, ex_hw_index, ex_ref, ex_path_tolerance, ex_goal_tolerance, ex_times, ex_knots,
+               ex_order, ex_coefficients, ex_ends, ex_feedback):
     """Cycles ``k0`` to ``k0 + n - 1`` at ``period_s`` [s] (see the module docstring); ``out`` says how it ended."""
     kept = 0
     framed = 0
     posed = 0
     joints = command.shape[0]
     for k in range(k0, k0 + n):
+        decided = False
         t = k * period_s
         for f in range(feed_parameters.shape[0]):
             value = source_sample(feed_parameters, feed_state, f, t)
@@ -82,6 +92,12 @@ def run_cycles(k0, n, period_s,
                 feedforward_update(ff_addresses, ff_qpos, ff_qpos_adr, ff_tau, ff_qdd_full, ff_dof_adr, ff_to_model,
                                    ff_q, ff_qdd, ff_wants_inertia, ff_model_out, position, reference_accelerations,
                                    ff_gravity, ff_inertia)
+            elif kind == TRAJECTORY:
+                if executor_update(ex_parameters, ex_state, ex_hw_index, ex_ref, ex_path_tolerance, ex_goal_tolerance,
+                                   ex_times, ex_knots, ex_order, ex_coefficients, ex_ends, ex_feedback, position,
+                                   velocity, reference_positions, reference_velocities, reference_accelerations,
+                                   k, t, period_s):
+                    decided = True
         total = 0.0
         for j in range(joints):
             total += command[j]
@@ -103,5 +119,8 @@ def run_cycles(k0, n, period_s,
             posed += 1
         if mujoco_advance(model_address, data_address, nstep, warnings, counters, warnings_seen):
             out[CYCLE], out[STATUS], out[ROWS], out[FRAMES], out[POSES] = k, WARNED, kept, framed, posed
+            return
+        if decided:
+            out[CYCLE], out[STATUS], out[ROWS], out[FRAMES], out[POSES] = k + 1, DECIDED, kept, framed, posed
             return
     out[CYCLE], out[STATUS], out[ROWS], out[FRAMES], out[POSES] = k0 + n, DONE, kept, framed, posed

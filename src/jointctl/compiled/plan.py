@@ -31,7 +31,9 @@ from jointctl.control.joint_state_controller import JointStateController
 from jointctl.hardware.mujoco_hardware import MujocoHardware
 from jointctl.recording.mcap_record import ObjectTrack
 from jointctl.recording.trace import TraceRecorder
+from jointctl.runtime.goal_sender import GoalSender
 from jointctl.runtime.spawner import ObjectSpawner
+from jointctl.trajectory.executor import TrajectoryExecutor
 from jointctl.visuals.video import FrameCapture
 
 #: Cycles per compiled stretch: between two stretches the loop can be stopped, and rows reach the trace.
@@ -48,21 +50,36 @@ def _describe(hook) -> str:
     return getattr(hook, "__qualname__", None) or type(hook).__name__
 
 
-def controller_reason(controller) -> str | None:
-    """Why ``controller`` has no compiled form (None when it has one)."""
+def controller_reason(controller, upstreams: tuple[str, ...] = ()) -> str | None:
+    """Why ``controller`` has no compiled form (None when it has one); ``upstreams``: the controllers it may be
+    chained to (trajectory executors running compiled)."""
     kind = type(controller)
+    if kind is TrajectoryExecutor:
+        return _executor_reason(controller)
     if kind not in _CONTROLLERS:
         name = getattr(controller, "name", None)
         if name is None:  # an update of the manager's own (the model feed-forward)
             return f"the update {kind.__name__}.update has no compiled form"
         return f"controller {name!r} ({kind.__name__}) has no compiled form"
     what = f"controller {controller.name!r} ({kind.__name__})"
-    if controller.upstream is not None:
+    if controller.upstream is not None and not (kind is JointPositionController and controller.upstream in upstreams):
         return f"{what} is chained to {controller.upstream!r}"
     if kind is JointVelocityController and controller.command_timeout_s is not None:
         return f"{what}: its command watchdog has no compiled form"
     if kind is JointStateController and controller._subscribers:
         return f"{what} has subscribers"
+    return None
+
+
+def _executor_reason(executor: TrajectoryExecutor) -> str | None:
+    """Why a trajectory executor has no compiled form (None when it has one)."""
+    what = f"trajectory executor {executor.name!r}"
+    if not executor.downstream:
+        return f"{what} commands the joints' position interfaces itself"
+    if executor._hands_over():
+        return f"{what} hands its goals to the hardware"
+    if executor.upstream is not None:
+        return f"{what} is chained to {executor.upstream!r}"
     return None
 
 
@@ -76,6 +93,11 @@ def python_reason(loop) -> str | None:
     if hw.command_buffers != (hw._effort_cmd,):
         return "the hardware has command interfaces other than effort"
     running = []
+    executors = [owner for owner in (getattr(c, "__self__", None) for c in loop.manager.update_calls)
+                 if type(owner) is TrajectoryExecutor]
+    if len(executors) > 1:
+        return "the loop runs more than one trajectory executor"
+    upstreams = tuple(e.name for e in executors)
     for call in loop.manager.update_calls:
         owner = getattr(call, "__self__", None)
         if owner is None or getattr(call, "__func__", None) is not type(owner).update:
@@ -83,12 +105,14 @@ def python_reason(loop) -> str | None:
         if type(owner) is ModelFeedforward and loop.manager.context.has_feedforward \
                 and owner is loop.manager.context.feedforward and owner.context.hardware is hw:
             continue
-        reason = controller_reason(owner)
+        reason = controller_reason(owner, upstreams)
         if reason is not None:
             return reason
         running.append(owner)
     for hook in loop.inputs:
         if type(hook) is ObjectSpawner and hook.simulation is hw.simulation:
+            continue
+        if type(hook) is GoalSender:  # runs in Python at its cycles
             continue
         if type(hook) is not SourceFeed:
             return f"the loop input {_describe(hook)} has no compiled form"
@@ -141,6 +165,7 @@ class CompiledRun:
         #: thread) ends the compiled run at the end of the stretch, and the loop goes on in Python.
         self.parts = (loop.inputs, loop.observers, loop.manager.update_calls)
         self.spawners = [hook for hook in loop.inputs if type(hook) is ObjectSpawner]
+        self.senders = [hook for hook in loop.inputs if type(hook) is GoalSender]
         self.pack()
 
     def pack(self) -> None:
@@ -154,6 +179,7 @@ class CompiledRun:
         from jointctl.hardware.mujoco_kernel import MujocoArrays
         from jointctl.recording.mcap_record_kernel import pack_track
         from jointctl.recording.trace_kernel import pack_trace
+        from jointctl.trajectory.executor_kernel import ExecutorArrays
         from jointctl.visuals.video_kernel import pack_frames
 
         loop, cycle = self.loop, self.cycle
@@ -168,9 +194,14 @@ class CompiledRun:
         self.latest = np.zeros((n, 3, joints))
         self.feedforward = FeedforwardArrays(next((c for c in self.controllers if type(c) is ModelFeedforward),
                                                   None))
+        self.executor = None
         for k, c in enumerate(self.controllers):
             if type(c) is ModelFeedforward:
                 self.kinds[k] = cycle.FEEDFORWARD
+                continue
+            if type(c) is TrajectoryExecutor:
+                self.kinds[k] = cycle.TRAJECTORY
+                self.executor = ExecutorArrays(c, loop.period_s)
                 continue
             if type(c) is JointPositionController:
                 kind, (params, state) = cycle.POSITION, pack_position(c)
@@ -241,6 +272,9 @@ class CompiledRun:
         status = cycle.DONE
         try:
             while k != end and not loop._stop_requested and self._parts_unchanged():
+                if self._python_needed(k):
+                    k = self._python_cycle(k)
+                    continue
                 spawn = self._next_spawn(k)
                 if spawn == k:
                     self._spawn(k)
@@ -248,6 +282,9 @@ class CompiledRun:
                 n = STRETCH_CYCLES if end < 0 else min(STRETCH_CYCLES, end - k)
                 if spawn is not None:
                     n = min(n, spawn - k)
+                send = self._next_send(k)
+                if send is not None:
+                    n = min(n, send - k)
                 hw = self.hw
                 cycle.run_cycles(
                     k, n, loop.period_s,
@@ -259,18 +296,91 @@ class CompiledRun:
                     self.recorder is not None, self.trace_state, self.rows,
                     self.capture is not None, self.frame_state, self.frames, self.frame_times,
                     self.track is not None, self.track_state, self.poses, self.pose_times, self.xpos, self.xquat,
-                    self.bodies, out, *self._feedforward_arguments())
+                    self.bodies, out, *self._feedforward_arguments(), *self._executor_arguments())
                 stopped_at, status = int(out[cycle.CYCLE]), int(out[cycle.STATUS])
                 self._hand_over(int(out[cycle.ROWS]), int(out[cycle.FRAMES]), int(out[cycle.POSES]))
                 k = stopped_at
                 loop.cycle = k
-                if status != cycle.DONE:
+                self._finish_supervision()
+                if status not in (cycle.DONE, cycle.DECIDED):
                     break
         finally:
             self.unpack()
         if status == cycle.WARNED:
             loop.hardware._check_warnings()  # raises the warning, as the Python advance does
         return k, status == cycle.NOT_FINITE
+
+    def _next_send(self, k: int) -> int | None:
+        cycles = [c for c in (s.next_cycle(k, self.loop.period_s) for s in self.senders) if c is not None]
+        return min(cycles) if cycles else None
+
+    def _python_needed(self, k: int) -> bool:
+        """Whether cycle ``k`` runs in Python: a goal is sent at it, or the executor has an event to take (a goal
+        waiting, a stream, a cancel, a hardware fault), or its goal delivers feedback to a callback."""
+        if self._next_send(k) == k:
+            return True
+        if self.executor is None:
+            return False
+        ex = self.executor.executor
+        goal, plan = ex.goals.active, ex._plan
+        return (ex.goals.pending is not None or ex._streamed is not None or ex.hardware.fault is not None
+                or (goal is not None and (goal.on_feedback is not None
+                                          or (goal.cancel_requested and plan is not None and not plan.stopping))))
+
+    def _python_cycle(self, k: int) -> int:
+        """Run cycle ``k`` in Python, as the loop does, with every part's state in its object; then pack again.
+        Returns the next cycle."""
+        self.unpack()
+        loop, hw, manager = self.loop, self.loop.hardware, self.loop.manager
+        period = loop.period_s
+        t = k * period
+        loop.cycle = k
+        try:
+            for hook in loop.inputs:
+                hook(t)
+            hw.read()
+            failed = False
+            for update in manager.update_calls:
+                try:
+                    update(t, period)
+                except Exception as exc:  # noqa: BLE001  (the failure policy: see ControllerManager)
+                    manager.fail_update(update, exc, t)
+                    failed = True
+            for buf in hw.command_buffers:
+                total = sum(buf)
+                if total - total:  # NaN: a non-finite command somewhere in the list
+                    failed = True
+            if failed:
+                manager.check_outputs(t)
+            hw.write()
+            for hook in loop.observers:
+                hook(t)
+            hw.advance(period)
+            loop.cycle = k + 1
+        finally:
+            self.pack()  # (what the run's end puts back is then the objects' state, also after an error)
+        return k + 1
+
+    def _finish_supervision(self) -> None:
+        """The goal's end the executor's kernel decided at a cycle of the stretch, made in Python (the decision
+        again, the goal's result, the stop) with the state of that cycle's end."""
+        arrays = self.executor
+        if arrays is None or arrays.decided_cycle is None:
+            return
+        k = arrays.decided_cycle
+        self.unpack()
+        ex = arrays.executor
+        ex._supervise(k * self.loop.period_s, ex.goals.active, ex._plan)
+        self.pack()
+
+    def _executor_arguments(self) -> tuple:
+        ex = self.executor
+        if ex is None:
+            from jointctl.trajectory.executor_kernel import NoExecutor
+
+            ex = NoExecutor()
+        return (ex.parameters, ex.state, ex.hw_index, ex.ref, ex.path_tolerance, ex.goal_tolerance, ex.times,
+                ex.knots, ex.order, ex.coefficients, ex.ends, ex.feedback)
 
     def _feedforward_arguments(self) -> tuple:
         ff = self.feedforward
@@ -303,6 +413,8 @@ class CompiledRun:
         for c, kind, state, latest in zip(self.controllers, self.kinds, self.state, self.latest):
             if kind == self.cycle.FEEDFORWARD:
                 self.feedforward.unpack()
+            elif kind == self.cycle.TRAJECTORY:
+                self.executor.unpack()
             elif kind == self.cycle.POSITION:
                 unpack_position(c, state)
             elif kind == self.cycle.VELOCITY:
