@@ -307,25 +307,42 @@ def goal_outcomes(run: Run) -> list[tuple]:
              round(g.result.time_s / 0.001) if g.result else None) for g in run.session.goals]
 
 
+SUCCEEDED, ACTIVE = GoalStatus.SUCCEEDED, GoalStatus.ACTIVE
+LINEAR_STREAM = "{interpolation: linear, stream_rate_hz: %d, velocity_feedforward: false}"
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize(("name", "overrides"), [
-    ("one_dof_trajectory", []),
-    ("one_dof_trajectory", ["controllers.joint1_trajectory_controller={interpolation: linear, stream_rate_hz: 100, "
-                            "velocity_feedforward: false}",
+@pytest.mark.parametrize(("name", "overrides", "statuses"), [
+    ("one_dof_trajectory", [], [SUCCEEDED]),
+    ("one_dof_trajectory", [f"controllers.joint1_trajectory_controller={LINEAR_STREAM % 100}",
                             "controllers.joint1_position_controller.feedforward={gravity: false, damping: false, "
-                            "inertia: false}"]),
-    ("minimal_robot_trajectory", []),
-    ("arm7dof_pose", ["duration_s=14.5"]),
-    ("arm7dof_pose", ["duration_s=6.0", "controllers.arm7dof_trajectory_controller={interpolation: linear, "
-                                        "stream_rate_hz: 50, velocity_feedforward: false}"]),
-    ("arm7dof_streamer", ["duration_s=3.0"]),
+                            "inertia: false}"], [SUCCEEDED]),
+    ("minimal_robot_trajectory", [], [SUCCEEDED]),
+    ("arm7dof_pose", ["duration_s=14.5"], [SUCCEEDED]),
+    ("arm7dof_pose", ["duration_s=6.0", f"controllers.arm7dof_trajectory_controller={LINEAR_STREAM % 50}"],
+     [ACTIVE]),
+    ("arm7dof_streamer", ["duration_s=3.0"], []),
 ], ids=["one_dof default", "one_dof chapter mode", "minimal robot", "arm pose", "arm pose streamed", "streamer"])
-def test_a_trajectory_scenario_gives_the_same_run_and_goal_results(name, overrides, tmp_path):
+def test_a_trajectory_scenario_gives_the_same_run_and_goal_results(name, overrides, statuses, tmp_path):
+    """The chapter's trajectory scenarios (cubic at the loop rate with the model feed-forward; linear streamed at
+    100 or 50 Hz without): the same trace, the same goal results at the same cycles."""
     python, compiled = both_paths(name, tmp_path, overrides)
     assert_same(python, compiled)
     assert goal_outcomes(python) == goal_outcomes(compiled)
-    if name != "arm7dof_streamer":
-        assert compiled.session.goals and compiled.session.goals[0].result is not None or name == "arm7dof_pose"
+    assert [status for status, _, _ in goal_outcomes(compiled)] == statuses
+
+
+@pytest.mark.slow
+def test_a_trajectory_scenario_gives_the_same_metrics(tmp_path):
+    """minimal_robot_trajectory's analysis (its theory against the run) reads the same numbers on both paths."""
+    from jointctl.scenario.run import run_scenario
+
+    metrics = {loop: run_scenario(load_scenario("minimal_robot_trajectory", [f"loop={loop}"]), tmp_path / loop,
+                                  mcap=False) for loop in ("python", "auto")}
+    assert metrics["auto"].pop("loop") == "compiled" and metrics["python"].pop("loop") == "python"
+    for m in metrics.values():
+        m.pop("real_time_factor"), m.pop("loop_reason", None)
+    assert metrics["python"] == metrics["auto"]
 
 
 def test_a_goal_ends_at_its_end_on_both_paths_and_feedback_is_kept(write_scenario, tmp_path):
@@ -425,3 +442,26 @@ def test_the_plan_kernel_samples_as_the_plan_does():
             for column, j in ((0, 1), (1, 0)):
                 got = plan_sample(arrays.times, arrays.knots, arrays.order, arrays.coefficients, arrays.ends, j, t)
                 assert got == (q[column], v[column], a[column]), (interp.kind, t)
+
+
+def test_a_goal_with_a_feedback_callback_takes_the_run_on_in_python(write_scenario, tmp_path):
+    """Feedback given to a callback is delivered in the loop's cycle: the compiled run takes the goal, then hands
+    the rest of the run to the Python loop; the callback sees the same feedback at the same times."""
+    from jointctl.trajectory.messages import JointTrajectory
+
+    seen = {}
+
+    def submit_with_a_callback(session):
+        session.run(0.1)
+        executor = session.manager.controller("joint1_trajectory_controller")
+        seen[session.loop.compiler is not None] = received = []
+        trajectory = JointTrajectory.from_dict({"joint_names": ["joint1"],
+                                                "points": [{"positions": [-0.3], "time_from_start": 0.3}]})
+        executor.submit(trajectory, on_feedback=received.append)
+
+    overrides = ["goals=[]", "duration_s=0.5"]
+    python = run_on("one_dof_trajectory", "python", tmp_path / "python", overrides, before=submit_with_a_callback)
+    compiled = run_on("one_dof_trajectory", "auto", tmp_path / "compiled", overrides, before=submit_with_a_callback)
+    assert compiled.session.loop.mode == "python" and "callback" in compiled.session.loop.mode_reason
+    assert_same(python, compiled)
+    assert seen[True] == seen[False] and len(seen[True]) >= 6  # every 50 ms from 0.1 s to the goal's end (0.4 s)

@@ -271,7 +271,7 @@ class CompiledRun:
         loop, cycle, out = self.loop, self.cycle, self.out
         status = cycle.DONE
         try:
-            while k != end and not loop._stop_requested and self._parts_unchanged():
+            while k != end and not loop._stop_requested and self._parts_unchanged() and self._no_feedback_callback():
                 if self._python_needed(k):
                     k = self._python_cycle(k)
                     continue
@@ -314,9 +314,18 @@ class CompiledRun:
         cycles = [c for c in (s.next_cycle(k, self.loop.period_s) for s in self.senders) if c is not None]
         return min(cycles) if cycles else None
 
+    def _no_feedback_callback(self) -> bool:
+        """False (and the loop goes on in Python) when the active goal delivers its feedback to a callback."""
+        goal = self.executor.executor.goals.active if self.executor is not None else None
+        if goal is None or goal.on_feedback is None:
+            return True
+        self.loop.mode = "python"
+        self.loop.mode_reason = "a trajectory goal delivers feedback to a callback: the run went on in Python"
+        return False
+
     def _python_needed(self, k: int) -> bool:
         """Whether cycle ``k`` runs in Python: a goal is sent at it, or the executor has an event to take (a goal
-        waiting, a stream, a cancel, a hardware fault), or its goal delivers feedback to a callback."""
+        waiting, a stream, a cancel, a hardware fault)."""
         if self._next_send(k) == k:
             return True
         if self.executor is None:
@@ -324,8 +333,7 @@ class CompiledRun:
         ex = self.executor.executor
         goal, plan = ex.goals.active, ex._plan
         return (ex.goals.pending is not None or ex._streamed is not None or ex.hardware.fault is not None
-                or (goal is not None and (goal.on_feedback is not None
-                                          or (goal.cancel_requested and plan is not None and not plan.stopping))))
+                or (goal is not None and goal.cancel_requested and plan is not None and not plan.stopping))
 
     def _python_cycle(self, k: int) -> int:
         """Run cycle ``k`` in Python, as the loop does, with every part's state in its object; then pack again.
