@@ -7,17 +7,21 @@ stays in Python (the first part without one). Parts with a compiled form:
 - the hardware: :class:`~jointctl.hardware.mujoco_hardware.MujocoHardware` (not paced to the wall clock);
 - controllers: effort ``JointPositionController`` (with any feed-forward: damping, and the model's gravity and
   inertia, the manager's :class:`~jointctl.control.context.ModelFeedforward` update running compiled too; not
-  chained),
+  chained except to the executor),
   ``JointVelocityController`` (without a command watchdog, not chained), ``JointStateController`` (without
-  subscribers);
+  subscribers), one :class:`~jointctl.trajectory.executor.TrajectoryExecutor` in front of position controllers
+  (its cycle between events: the plan sampled, references written, the goal supervised; a cycle with an event
+  of the executor's runs in Python, and a goal's end decided in a stretch is made in Python after its cycle);
 - inputs: a :class:`~jointctl.commands.sources.SourceFeed` of a constant, step or sine source into one of those;
   the scenario's :class:`~jointctl.runtime.spawner.ObjectSpawner` (run in Python at its cycles, between stretches);
+  the scenario's :class:`~jointctl.runtime.goal_sender.GoalSender` (its cycles run in Python);
 - observers: the :class:`~jointctl.recording.trace.TraceRecorder`, a :class:`~jointctl.visuals.video.FrameCapture`,
   ``run.mcap``'s :class:`~jointctl.recording.mcap_record.ObjectTrack`.
 
-Everything else (a user's controller, the tuning page, ROS, a trajectory executor, admittance control, goals,
-noisy or late hardware) keeps the Python loop. A compiled run takes the Python objects' state
-as it is at the start of ``run`` and puts it back at its end, so runs may alternate between the two paths.
+Everything else (a user's controller, the tuning page, ROS, admittance control, noisy or late hardware) keeps the
+Python loop; a goal that gives its feedback to a callback takes the run on in Python. A compiled run takes the
+Python objects' state as it is at the start of ``run`` and puts it back at its end, so runs may alternate between
+the two paths.
 """
 
 from __future__ import annotations
