@@ -5,6 +5,7 @@ cycles (controller failures, physics warnings) and the same state left in the Py
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -465,3 +466,29 @@ def test_a_goal_with_a_feedback_callback_takes_the_run_on_in_python(write_scenar
     assert compiled.session.loop.mode == "python" and "callback" in compiled.session.loop.mode_reason
     assert_same(python, compiled)
     assert seen[True] == seen[False] and len(seen[True]) >= 6  # every 50 ms from 0.1 s to the goal's end (0.4 s)
+
+
+def test_a_partial_goal_and_a_stream_with_its_watchdog_give_the_same_run(tmp_path):
+    """On the arm: a goal naming two joints (the others brought to rest by the plan's stop part), then streamed
+    references replacing it (PREEMPTED), held with velocity zeroed when the stream stops (the watchdog, 0.5 s)."""
+    from jointctl.trajectory.messages import JointTrajectory
+
+    def partial_goal_then_stream(session):
+        session.run(0.05)
+        executor = session.manager.controller("arm7dof_trajectory_controller")
+        trajectory = JointTrajectory.from_dict({"joint_names": ["joint3", "joint1"], "points": [
+            {"positions": [-0.08, 0.08], "velocities": [-0.1, 0.1], "time_from_start": 0.5},
+            {"positions": [-0.15, 0.15], "velocities": [0.0, 0.0], "time_from_start": 1.0}]})
+        session.goals.append(executor.submit(trajectory))
+        session.run(0.6)
+        desired = executor.desired
+        executor.stream_reference(desired, [0.0, 0.05, 0.0, 0.0, 0.0, 0.0, 0.0])
+
+    python, compiled = both_paths("arm7dof_streamer", tmp_path, ["duration_s=0.8", "record.every=1"],
+                                  before=partial_goal_then_stream)
+    assert_same(python, compiled)
+    assert goal_outcomes(compiled) == [(GoalStatus.PREEMPTED, TrajectoryErrorCode.SUCCESSFUL, 650)]
+    reference = compiled.trace.joint("joint1", "reference")  # the position reference in use
+    executor = compiled.session.manager.controller("arm7dof_trajectory_controller")
+    assert executor._stream_deadline_s == math.inf and executor.desired_velocity[1] == 0.0  # the watchdog fired
+    assert np.ptp(reference[651:]) == 0.0 and 0.0 < reference[651] < 0.15  # held where the stream put it
