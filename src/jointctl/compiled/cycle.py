@@ -38,8 +38,8 @@ TRAJECTORY = 4
 #: How a stretch ended (``out[STATUS]``): every cycle ran; a cycle's commands were not finite (the cycle
 #: ``out[CYCLE]`` is updated, not written); a step raised a warning (the cycle ``out[CYCLE]`` stepped).
 DONE, NOT_FINITE, WARNED = range(3)
-#: ... or the trajectory executor's supervision decided its goal's end at cycle ``out[CYCLE] - 1`` (run whole: the
-#: Python ends the goal).
+#: A stretch also ends when the trajectory executor's supervision decided its goal's end at cycle
+#: ``out[CYCLE] - 1`` (that cycle run whole: the Python then ends the goal).
 DECIDED = 3
 #: ``out``: where the stretch ended, how, and the trace rows, video frames and object poses it kept.
 CYCLE, STATUS, ROWS, FRAMES, POSES = range(5)
