@@ -5,10 +5,12 @@ cycles (controller failures, physics warnings) and the same state left in the Py
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import yaml
 import pytest
 
 from jointctl.control.admittance_controller import AdmittanceController
@@ -16,9 +18,12 @@ from jointctl.control.cartesian_admittance_controller import CartesianAdmittance
 from jointctl.control.joint_controllers import JointPositionController
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.errors import ExpressionError, PhysicsError
+from jointctl.trajectory.errors import TrajectoryErrorCode
+from jointctl.trajectory.goals import GoalStatus
 from jointctl.recording.trace import Trace, load_trace
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import load_scenario
+from jointctl.trajectory.executor import TrajectoryExecutor
 from jointctl.visuals.video import FrameCapture
 from tests.conftest import step_scenario
 
@@ -88,6 +93,11 @@ def _plain(value):
 
 
 def controller_state(c) -> tuple:
+    if isinstance(c, TrajectoryExecutor):
+        goal = c.goals.active
+        return (c._ref, c.latest_feedback, c._next_feedback_s, c._next_stream_s, c._supervise_at,
+                c._stream_deadline_s, c._last_time_s, c.goals_served, goal.id if goal else None,
+                c._plan.end_s if c._plan else None)
     if isinstance(c, JointStateController):
         return c.published, c.latest
     if isinstance(c, AdmittanceController):
@@ -112,6 +122,8 @@ def assert_same(python: Run, compiled: Run) -> None:
     for a, b in zip(p.manager.loaded(), c.manager.loaded()):
         assert controller_state(a) == controller_state(b), a.name
     assert p.manager.references == c.manager.references
+    assert [(g.id, g.status, g.result) for g in p.goals] == [(g.id, g.status, g.result) for g in c.goals]
+    assert [(t, str(e)) for t, e in p.rejected_goals] == [(t, str(e)) for t, e in c.rejected_goals]
     assert p.hardware.position == c.hardware.position and p.hardware.effort == c.hardware.effort
     assert p.hardware.wrenches == c.hardware.wrenches
     assert p.hardware._until_warning_check == c.hardware._until_warning_check
@@ -393,3 +405,232 @@ def test_a_stop_request_ends_a_compiled_run_after_its_stretch(write_scenario):
     assert session.loop.run() == 0 and session.loop.mode == "compiled"
     session.loop.compiler = original
     assert session.loop.run(cycles=STRETCH_CYCLES + 7) == STRETCH_CYCLES + 7
+
+
+# -- the model feed-forward --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("terms", ["{gravity: true}", "{gravity: true, damping: true, inertia: true}"])
+def test_the_model_feed_forward_gives_the_same_run(terms, write_scenario, tmp_path):
+    """Seven position controllers adding g(q) (and M(q)·q̈_ref, 0 for plain commands, and b·q̇_ref) from the
+    robot model: the manager's feed-forward update runs compiled before its first user."""
+    names = [f"joint{k}_position_controller" for k in range(7)]
+    scenario = {
+        "name": "arm_positions", "robot": "arm7dof", "controller_file": "position", "gravity": -9.81,
+        "start_controllers": ["joint_state_controller", *names], "duration_s": 0.4, "record": {"every": 2},
+        "initial_positions": {"joint1": 0.5, "joint3": -1.0},
+        "controllers": {n: {"feedforward": yaml.safe_load(terms)} for n in names},
+        "commands": {names[1]: {"type": "step", "from": 0.5, "to": 0.7, "at": 0.1, "ramp_s": 0.1},
+                     names[3]: {"type": "sine", "amplitude": 0.1, "frequency_hz": 2.0, "offset": -1.0,
+                                "rate_hz": 1000}},
+    }
+    python, compiled = both_paths(write_scenario(scenario), tmp_path)
+    assert_same(python, compiled)
+    ff_p, ff_c = python.session.manager.context.feedforward, compiled.session.manager.context.feedforward
+    assert ff_p.gravity == ff_c.gravity and ff_p.inertia == ff_c.inertia
+    # gravity holds the arm: joint1's g(q) at 0.7 rad is tens of N·m, and its command carries it
+    assert abs(ff_c.gravity[1]) > 10.0
+
+
+def test_the_one_dof_trajectory_robot_holds_with_its_gravity_feed_forward(tmp_path):
+    """one_dof_trajectory's position controller (gravity, damping and inertia feed-forward), held by a plain
+    command (no executor, no goal)."""
+    overrides = ["goals=[]", "duration_s=0.5",
+                 "start_controllers=[joint_state_controller, joint1_position_controller]",
+                 "commands={joint1_position_controller: {type: step, from: -0.5, to: -0.3, at: 0.1}}"]
+    python, compiled = both_paths("one_dof_trajectory", tmp_path, overrides)
+    assert_same(python, compiled)
+    assert compiled.session.manager.controller("joint1_position_controller")._gravity
+
+
+# -- the trajectory executor ---------------------------------------------------------------------------------------
+
+def goal_outcomes(run: Run) -> list[tuple]:
+    """Each scenario goal's status, error code and the cycle it ended at."""
+    return [(g.status, g.result.error_code if g.result else None,
+             round(g.result.time_s / 0.001) if g.result else None) for g in run.session.goals]
+
+
+SUCCEEDED, ACTIVE = GoalStatus.SUCCEEDED, GoalStatus.ACTIVE
+LINEAR_STREAM = "{interpolation: linear, stream_rate_hz: %d, velocity_feedforward: false}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "overrides", "statuses"), [
+    ("one_dof_trajectory", [], [SUCCEEDED]),
+    ("one_dof_trajectory", [f"controllers.joint1_trajectory_controller={LINEAR_STREAM % 100}",
+                            "controllers.joint1_position_controller.feedforward={gravity: false, damping: false, "
+                            "inertia: false}"], [SUCCEEDED]),
+    ("minimal_robot_trajectory", [], [SUCCEEDED]),
+    ("arm7dof_pose", ["duration_s=14.5"], [SUCCEEDED]),
+    ("arm7dof_pose", ["duration_s=6.0", f"controllers.arm7dof_trajectory_controller={LINEAR_STREAM % 50}"],
+     [ACTIVE]),
+    ("arm7dof_streamer", ["duration_s=3.0"], []),
+], ids=["one_dof default", "one_dof chapter mode", "minimal robot", "arm pose", "arm pose streamed", "streamer"])
+def test_a_trajectory_scenario_gives_the_same_run_and_goal_results(name, overrides, statuses, tmp_path):
+    """The chapter's trajectory scenarios (cubic at the loop rate with the model feed-forward; linear streamed at
+    100 or 50 Hz without): the same trace, the same goal results at the same cycles."""
+    python, compiled = both_paths(name, tmp_path, overrides)
+    assert_same(python, compiled)
+    assert goal_outcomes(python) == goal_outcomes(compiled)
+    assert [status for status, _, _ in goal_outcomes(compiled)] == statuses
+
+
+@pytest.mark.slow
+def test_a_trajectory_scenario_gives_the_same_metrics(tmp_path):
+    """minimal_robot_trajectory's analysis (its theory against the run) reads the same numbers on both paths."""
+    from jointctl.scenario.run import run_scenario
+
+    metrics = {loop: run_scenario(load_scenario("minimal_robot_trajectory", [f"loop={loop}"]), tmp_path / loop,
+                                  mcap=False) for loop in ("python", "auto")}
+    assert metrics["auto"].pop("loop") == "compiled" and metrics["python"].pop("loop") == "python"
+    for m in metrics.values():
+        m.pop("real_time_factor"), m.pop("loop_reason", None)
+    assert metrics["python"] == metrics["auto"]
+
+
+def test_a_goal_ends_at_its_end_on_both_paths_and_feedback_is_kept(write_scenario, tmp_path):
+    """A short cubic goal with a goal tolerance: it succeeds at the first cycle at or after its end where the
+    joint is within the tolerance and at rest, at the same cycle on both paths; a second goal arrives mid-run
+    (between two cycles' times) and succeeds too."""
+    scenario = {
+        "name": "two_goals", "robot": "one_dof", "controller_file": "trajectory", "gravity": -9.81,
+        "start_controllers": ["joint_state_controller", "joint1_position_controller",
+                              "joint1_trajectory_controller"],
+        "controllers": {"joint1_trajectory_controller": {"goal_tolerance": 0.01, "goal_time_s": 1.0}},
+        "initial_positions": {"joint1": -0.5}, "duration_s": 2.5,
+        "goals": [{"controller": "joint1_trajectory_controller", "at_s": 0.2,
+                   "trajectory": {"joint_names": ["joint1"], "points": [
+                       {"positions": [-0.4], "time_from_start": 0.3}, {"positions": [-0.3], "time_from_start": 0.6}]}},
+                  {"controller": "joint1_trajectory_controller", "at_s": 1.5033,
+                   "trajectory": {"joint_names": ["joint1"], "points": [
+                       {"positions": [-0.6], "time_from_start": 0.5}]}}],
+    }
+    python, compiled = both_paths(write_scenario(scenario), tmp_path)
+    assert_same(python, compiled)
+    outcomes = goal_outcomes(compiled)
+    assert outcomes == goal_outcomes(python)
+    assert [status for status, _, _ in outcomes] == [GoalStatus.SUCCEEDED, GoalStatus.SUCCEEDED]
+    assert 800 <= outcomes[0][2] < 1800 and outcomes[1][2] >= 2004  # after each goal's end (0.8 s, 2.004 s)
+    # feedback every 50 ms of the goal (kept, no callback): the last one within 50 ms of its end
+    feedback = compiled.session.manager.controller("joint1_trajectory_controller").latest_feedback
+    assert outcomes[1][2] * 0.001 - 0.05 < feedback.time_s <= outcomes[1][2] * 0.001
+
+
+def test_a_path_tolerance_violation_aborts_the_goal_at_the_same_cycle_on_both_paths(write_scenario, tmp_path):
+    """A goal faster than the joint can follow (0.4 rad in 0.1 s under a weak loop) strays beyond a 2 mrad path
+    tolerance: aborted PATH_TOLERANCE_VIOLATED at the same cycle, then the stop plan brings the joint to rest."""
+    scenario = {
+        "name": "stray", "robot": "one_dof", "controller_file": "trajectory", "gravity": -9.81,
+        "start_controllers": ["joint_state_controller", "joint1_position_controller",
+                              "joint1_trajectory_controller"],
+        "controllers": {"joint1_trajectory_controller": {"path_tolerance": 0.002},
+                        "joint1_position_controller": {"pid": {"p": 50.0, "i": 0.0, "d": 2.0}}},
+        "initial_positions": {"joint1": -0.5}, "duration_s": 1.0,
+        "goals": [{"controller": "joint1_trajectory_controller", "at_s": 0.1,
+                   "trajectory": {"joint_names": ["joint1"], "points": [
+                       {"positions": [-0.1], "time_from_start": 0.1}]}}],
+    }
+    python, compiled = both_paths(write_scenario(scenario), tmp_path)
+    assert_same(python, compiled)
+    (status, code, cycle), = goal_outcomes(compiled)
+    assert (status, code) == (GoalStatus.ABORTED, TrajectoryErrorCode.PATH_TOLERANCE_VIOLATED)
+    assert 100 < cycle < 200  # while the goal runs
+    assert goal_outcomes(python) == [(status, code, cycle)]
+    executor = compiled.session.manager.controller("joint1_trajectory_controller")
+    assert executor._plan.stopping and executor.desired_velocity == [0.0]
+
+
+def test_a_cancel_stops_the_goal_at_the_same_cycle_on_both_paths(write_scenario, tmp_path):
+    """A goal canceled between two runs: the next cycle (in Python on the compiled path) ends it PREEMPTED and
+    starts the stop, which the compiled cycles then follow."""
+    scenario = {
+        "name": "cancel", "robot": "one_dof", "controller_file": "trajectory", "gravity": -9.81,
+        "start_controllers": ["joint_state_controller", "joint1_position_controller",
+                              "joint1_trajectory_controller"],
+        "initial_positions": {"joint1": -0.5}, "duration_s": 0.6,
+        "goals": [{"controller": "joint1_trajectory_controller", "at_s": 0.05,
+                   "trajectory": {"joint_names": ["joint1"], "points": [
+                       {"positions": [-0.1], "time_from_start": 1.0}]}}],
+    }
+
+    def cancel_mid_goal(session):
+        session.run(0.3)
+        session.goals[0].cancel()
+
+    python, compiled = both_paths(write_scenario(scenario), tmp_path, before=cancel_mid_goal)
+    assert_same(python, compiled)
+    assert goal_outcomes(compiled) == [(GoalStatus.PREEMPTED, TrajectoryErrorCode.SUCCESSFUL, 300)]
+    assert compiled.session.manager.controller("joint1_trajectory_controller").desired_velocity == [0.0]
+
+
+def test_the_plan_kernel_samples_as_the_plan_does():
+    """Linear, cubic (spline) and quintic pieces, a partial goal's stop part, before, inside, at and after the
+    knots: the same bits as Interpolant.sample."""
+    from jointctl.trajectory.executor_kernel import ExecutorArrays, plan_sample
+    from jointctl.trajectory.interpolation import build_interpolant
+
+    times = np.array([0.0, 0.13, 0.5, 0.77, 1.2])
+    positions = np.array([[0.0, 1.0], [0.3, 0.8], [0.1, 0.4], [0.2, 0.9], [0.25, 0.5]])
+    velocities = np.array([[0.0, 0.1], [0.5, -0.8], [0.1, 0.3], [-0.2, 0.4], [0.0, 0.0]])
+    accelerations = velocities * 3.0
+    for interp in (build_interpolant(times, positions, kind="linear"),
+                   build_interpolant(times, positions, kind="spline", start_velocity=[0.1, -0.2]),
+                   build_interpolant(times, positions, velocities, accelerations, kind="quintic")):
+        arrays = ExecutorArrays.__new__(ExecutorArrays)
+        plan = type("P", (), {"parts": [(interp, np.array([1, 0]))]})()
+        arrays._pack_plan(plan, 2)
+        ts = np.concatenate(([-0.1, 1.2, 1.3], times, 0.001 * np.arange(1250)))
+        for t in ts:
+            q, v, a = interp.sample(t)
+            for column, j in ((0, 1), (1, 0)):
+                got = plan_sample(arrays.times, arrays.knots, arrays.order, arrays.coefficients, arrays.ends, j, t)
+                assert got == (q[column], v[column], a[column]), (interp.kind, t)
+
+
+def test_a_goal_with_a_feedback_callback_takes_the_run_on_in_python(write_scenario, tmp_path):
+    """Feedback given to a callback is delivered in the loop's cycle: the compiled run takes the goal, then hands
+    the rest of the run to the Python loop; the callback sees the same feedback at the same times."""
+    from jointctl.trajectory.messages import JointTrajectory
+
+    seen = {}
+
+    def submit_with_a_callback(session):
+        session.run(0.1)
+        executor = session.manager.controller("joint1_trajectory_controller")
+        seen[session.loop.compiler is not None] = received = []
+        trajectory = JointTrajectory.from_dict({"joint_names": ["joint1"],
+                                                "points": [{"positions": [-0.3], "time_from_start": 0.3}]})
+        executor.submit(trajectory, on_feedback=received.append)
+
+    overrides = ["goals=[]", "duration_s=0.5"]
+    python = run_on("one_dof_trajectory", "python", tmp_path / "python", overrides, before=submit_with_a_callback)
+    compiled = run_on("one_dof_trajectory", "auto", tmp_path / "compiled", overrides, before=submit_with_a_callback)
+    assert compiled.session.loop.mode == "python" and "callback" in compiled.session.loop.mode_reason
+    assert_same(python, compiled)
+    assert seen[True] == seen[False] and len(seen[True]) >= 6  # every 50 ms from 0.1 s to the goal's end (0.4 s)
+
+
+def test_a_partial_goal_and_a_stream_with_its_watchdog_give_the_same_run(tmp_path):
+    """On the arm: a goal naming two joints (the others brought to rest by the plan's stop part), then streamed
+    references replacing it (PREEMPTED), held with velocity zeroed when the stream stops (the watchdog, 0.5 s)."""
+    from jointctl.trajectory.messages import JointTrajectory
+
+    def partial_goal_then_stream(session):
+        session.run(0.05)
+        executor = session.manager.controller("arm7dof_trajectory_controller")
+        trajectory = JointTrajectory.from_dict({"joint_names": ["joint3", "joint1"], "points": [
+            {"positions": [-0.08, 0.08], "velocities": [-0.1, 0.1], "time_from_start": 0.5},
+            {"positions": [-0.15, 0.15], "velocities": [0.0, 0.0], "time_from_start": 1.0}]})
+        session.goals.append(executor.submit(trajectory))
+        session.run(0.6)
+        desired = executor.desired
+        executor.stream_reference(desired, [0.0, 0.05, 0.0, 0.0, 0.0, 0.0, 0.0])
+
+    python, compiled = both_paths("arm7dof_streamer", tmp_path, ["duration_s=0.8", "record.every=1"],
+                                  before=partial_goal_then_stream)
+    assert_same(python, compiled)
+    assert goal_outcomes(compiled) == [(GoalStatus.PREEMPTED, TrajectoryErrorCode.SUCCESSFUL, 650)]
+    reference = compiled.trace.joint("joint1", "reference")  # the position reference in use
+    executor = compiled.session.manager.controller("arm7dof_trajectory_controller")
+    assert executor._stream_deadline_s == math.inf and executor.desired_velocity[1] == 0.0  # the watchdog fired
+    assert np.ptp(reference[651:]) == 0.0 and 0.0 < reference[651] < 0.15  # held where the stream put it

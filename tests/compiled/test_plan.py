@@ -27,14 +27,17 @@ def test_a_run_of_built_in_parts_is_compiled(write_scenario):
     assert mode_of(Session(load_scenario(write_scenario(step_scenario())))) == ("compiled", None)
 
 
+def test_the_model_feed_forward_is_compiled(write_scenario):
+    changes = {"controllers": {POSITION: {"feedforward": {"gravity": True, "inertia": True}}}}
+    assert mode_of(Session(load_scenario(write_scenario(step_scenario(**changes))))) == ("compiled", None)
+
+
 @pytest.mark.parametrize(("changes", "reason"), [
     ({"loop": "python"}, "the scenario asks for it (loop: python)"),
     ({"controllers": {POSITION: {"type": FAULTY_TYPE, "fail_above": 10.0}}},
      f"controller '{POSITION}' (FaultyPositionController) has no compiled form"),
-    ({"controllers": {POSITION: {"feedforward": {"gravity": True}}}},
-     "the update ModelFeedforward.update has no compiled form"),
     ({"latency_cycles": 1}, "the hardware (ImperfectHardware) has no compiled form"),
-], ids=["asked", "user controller", "gravity feed-forward", "late commands"])
+], ids=["asked", "user controller", "late commands"])
 def test_a_part_without_a_compiled_form_keeps_the_python_loop_and_says_which(changes, reason, write_scenario):
     session = Session(load_scenario(write_scenario(step_scenario(**changes))))
     assert mode_of(session) == ("python", reason)
@@ -50,10 +53,9 @@ def test_a_command_source_of_the_users_keeps_the_python_loop(write_scenario):
     assert mode_of(session) == ("python", f"the command source Ramp of '{POSITION}' has no compiled form")
 
 
-def test_a_trajectory_executor_keeps_the_python_loop():
+def test_a_trajectory_executor_and_its_goals_are_compiled():
     session = Session(load_scenario("one_dof_trajectory"))
-    assert mode_of(session) == ("python", "controller 'joint1_trajectory_controller' (TrajectoryExecutor) has no "
-                                          "compiled form")
+    assert mode_of(session) == ("compiled", None)
 
 
 def test_a_velocity_controller_chained_to_an_admittance_controller_runs_compiled_after_it(write_scenario):

@@ -5,21 +5,26 @@ run, it returns a :class:`CompiledRun` when every part of the cycle has a compil
 stays in Python (the first part without one). Parts with a compiled form:
 
 - the hardware: :class:`~jointctl.hardware.mujoco_hardware.MujocoHardware` (not paced to the wall clock);
-- controllers: effort ``JointPositionController`` (without the model feed-forward, not chained),
-  ``JointVelocityController`` (with its command watchdog, or chained to an admittance controller updated before
-  it), ``JointStateController`` (without subscribers), the natural admittance controllers
-  :class:`~jointctl.control.admittance_controller.AdmittanceController` and
+- controllers: effort ``JointPositionController`` (with any feed-forward: damping, and the model's gravity and
+  inertia, the manager's :class:`~jointctl.control.context.ModelFeedforward` update running compiled too; not
+  chained except to the executor), ``JointVelocityController`` (with its command watchdog, or chained to an
+  admittance controller updated before it), ``JointStateController`` (without subscribers), the natural admittance
+  controllers :class:`~jointctl.control.admittance_controller.AdmittanceController` and
   :class:`~jointctl.control.cartesian_admittance_controller.CartesianAdmittanceController` (one, with H diagonal:
-  not ``use_model_inertia``);
+  not ``use_model_inertia``), one :class:`~jointctl.trajectory.executor.TrajectoryExecutor` in front of position
+  controllers (its cycle between events: the plan sampled, references written, the goal supervised; a cycle with
+  an event of the executor's runs in Python, and a goal's end decided in a stretch is made in Python after its
+  cycle);
 - inputs: a :class:`~jointctl.commands.sources.SourceFeed` of a constant, step, sine, chirp or expression source
   into one of those (an expression evaluated in Python a stretch ahead, a message at a time);
   the scenario's :class:`~jointctl.runtime.spawner.ObjectSpawner` (run in Python at its cycles, between stretches);
+  the scenario's :class:`~jointctl.runtime.goal_sender.GoalSender` (its cycles run in Python);
 - observers: the :class:`~jointctl.recording.trace.TraceRecorder`, a :class:`~jointctl.visuals.video.FrameCapture`,
   ``run.mcap``'s :class:`~jointctl.recording.mcap_record.ObjectTrack`.
 
-Everything else (a user's controller, the tuning page, ROS, a trajectory executor, goals, noisy or late
-hardware) keeps the Python loop. A compiled run takes the Python objects' state
-as it is at the start of ``run`` and puts it back at its end, so runs may alternate between the two paths.
+Everything else (a user's controller, the tuning page, ROS, noisy or late hardware) keeps the Python loop; a
+goal that gives its feedback to a callback takes the run on in Python. A compiled run takes the Python objects'
+state as it is at the start of ``run`` and puts it back at its end, so runs may alternate between the two paths.
 """
 
 from __future__ import annotations
@@ -29,12 +34,15 @@ import numpy as np
 from jointctl.commands.sources import ChirpSource, ConstantSource, ExpressionSource, SineSource, SourceFeed, StepSource
 from jointctl.control.admittance_controller import AdmittanceController
 from jointctl.control.cartesian_admittance_controller import CartesianAdmittanceController
+from jointctl.control.context import ModelFeedforward
 from jointctl.control.joint_controllers import JointPositionController, JointVelocityController
 from jointctl.control.joint_state_controller import JointStateController
 from jointctl.hardware.mujoco_hardware import MujocoHardware
 from jointctl.recording.mcap_record import ObjectTrack
 from jointctl.recording.trace import TraceRecorder
+from jointctl.runtime.goal_sender import GoalSender
 from jointctl.runtime.spawner import ObjectSpawner
+from jointctl.trajectory.executor import TrajectoryExecutor
 from jointctl.visuals.video import FrameCapture
 
 #: Cycles per compiled stretch: between two stretches the loop can be stopped, and rows reach the trace.
@@ -53,12 +61,15 @@ def _describe(hook) -> str:
     return getattr(hook, "__qualname__", None) or type(hook).__name__
 
 
-def controller_reason(controller, running=()) -> str | None:
+def controller_reason(controller, running=(), upstreams: tuple[str, ...] = ()) -> str | None:
     """Why ``controller`` has no compiled form (None when it has one); ``running``: the controllers updated before
-    it that have one (a chained velocity controller has one when its upstream is among them)."""
+    it that have one (a chained velocity controller has one when its upstream admittance controller is among
+    them); ``upstreams``: the trajectory executors running compiled (a position controller may be chained to one)."""
     kind = type(controller)
     if kind in _UPSTREAM:
         return _upstream_reason(controller)
+    if kind is TrajectoryExecutor:
+        return _executor_reason(controller)
     if kind is JointVelocityController and controller.upstream is not None and any(
             type(c) in _UPSTREAM and c.name == controller.upstream for c in running):
         return None  # chained: its reference written by the upstream's kernel first, its watchdog off
@@ -68,10 +79,8 @@ def controller_reason(controller, running=()) -> str | None:
             return f"the update {kind.__name__}.update has no compiled form"
         return f"controller {name!r} ({kind.__name__}) has no compiled form"
     what = f"controller {controller.name!r} ({kind.__name__})"
-    if controller.upstream is not None:
+    if controller.upstream is not None and not (kind is JointPositionController and controller.upstream in upstreams):
         return f"{what} is chained to {controller.upstream!r}"
-    if kind is JointPositionController and set(controller.feedforward_terms) - {"damping"}:
-        return f"{what}: its model feed-forward has no compiled form"
     if kind is JointStateController and controller._subscribers:
         return f"{what} has subscribers"
     return None
@@ -85,6 +94,18 @@ def _upstream_reason(controller) -> str | None:
     return None
 
 
+def _executor_reason(executor: TrajectoryExecutor) -> str | None:
+    """Why a trajectory executor has no compiled form (None when it has one)."""
+    what = f"trajectory executor {executor.name!r}"
+    if not executor.downstream:
+        return f"{what} commands the joints' position interfaces itself"
+    if executor._hands_over():
+        return f"{what} hands its goals to the hardware"
+    if executor.upstream is not None:
+        return f"{what} is chained to {executor.upstream!r}"
+    return None
+
+
 def python_reason(loop) -> str | None:
     """Why ``loop`` runs in Python (None when every part of its cycle has a compiled form)."""
     hw = loop.hardware
@@ -95,11 +116,19 @@ def python_reason(loop) -> str | None:
     if hw.command_buffers != (hw._effort_cmd,):
         return "the hardware has command interfaces other than effort"
     running = []
+    executors = [owner for owner in (getattr(c, "__self__", None) for c in loop.manager.update_calls)
+                 if type(owner) is TrajectoryExecutor]
+    if len(executors) > 1:
+        return "the loop runs more than one trajectory executor"
+    upstreams = tuple(e.name for e in executors)
     for call in loop.manager.update_calls:
         owner = getattr(call, "__self__", None)
         if owner is None or getattr(call, "__func__", None) is not type(owner).update:
             return f"the update {_describe(call)} has no compiled form"
-        reason = controller_reason(owner, running)
+        if type(owner) is ModelFeedforward and loop.manager.context.has_feedforward \
+                and owner is loop.manager.context.feedforward and owner.context.hardware is hw:
+            continue
+        reason = controller_reason(owner, running, upstreams)
         if reason is not None:
             return reason
         running.append(owner)
@@ -107,6 +136,8 @@ def python_reason(loop) -> str | None:
         return "the loop has more than one CartesianAdmittanceController"
     for hook in loop.inputs:
         if type(hook) is ObjectSpawner and hook.simulation is hw.simulation:
+            continue
+        if type(hook) is GoalSender:  # runs in Python at its cycles
             continue
         if type(hook) is not SourceFeed:
             return f"the loop input {_describe(hook)} has no compiled form"
@@ -161,6 +192,7 @@ class CompiledRun:
         #: thread) ends the compiled run at the end of the stretch, and the loop goes on in Python.
         self.parts = (loop.inputs, loop.observers, loop.manager.update_calls)
         self.spawners = [hook for hook in loop.inputs if type(hook) is ObjectSpawner]
+        self.senders = [hook for hook in loop.inputs if type(hook) is GoalSender]
         self.pack()
 
     def pack(self) -> None:
@@ -171,11 +203,13 @@ class CompiledRun:
         from jointctl.control.admittance_controller_kernel import PARAMETERS as ADMITTANCE_PARAMETERS
         from jointctl.control.admittance_controller_kernel import STATE as ADMITTANCE_STATE
         from jointctl.control.admittance_controller_kernel import pack_admittance
+        from jointctl.control.context_kernel import FeedforwardArrays
         from jointctl.control.joint_controllers_kernel import PARAMETERS, STATE, pack_position, pack_velocity
         from jointctl.control.joint_state_kernel import pack_joint_state
         from jointctl.hardware.mujoco_kernel import MujocoArrays
         from jointctl.recording.mcap_record_kernel import pack_track
         from jointctl.recording.trace_kernel import pack_trace
+        from jointctl.trajectory.executor_kernel import ExecutorArrays
         from jointctl.visuals.video_kernel import pack_frames
 
         loop, cycle = self.loop, self.cycle
@@ -188,7 +222,17 @@ class CompiledRun:
         self.parameters = np.zeros((n, max(PARAMETERS, ADMITTANCE_PARAMETERS)))
         self.state = np.zeros((n, max(STATE, ADMITTANCE_STATE)))
         self.latest = np.zeros((n, 3, joints))
+        self.feedforward = FeedforwardArrays(next((c for c in self.controllers if type(c) is ModelFeedforward),
+                                                  None))
+        self.executor = None
         for k, c in enumerate(self.controllers):
+            if type(c) is ModelFeedforward:
+                self.kinds[k] = cycle.FEEDFORWARD
+                continue
+            if type(c) is TrajectoryExecutor:
+                self.kinds[k] = cycle.TRAJECTORY
+                self.executor = ExecutorArrays(c, loop.period_s)
+                continue
             if type(c) is JointPositionController:
                 kind, (params, state) = cycle.POSITION, pack_position(c)
             elif type(c) is JointVelocityController:
@@ -282,7 +326,10 @@ class CompiledRun:
         loop, cycle, out = self.loop, self.cycle, self.out
         status = cycle.DONE
         try:
-            while k != end and not loop._stop_requested and self._parts_unchanged():
+            while k != end and not loop._stop_requested and self._parts_unchanged() and self._no_feedback_callback():
+                if self._python_needed(k):
+                    k = self._python_cycle(k)
+                    continue
                 spawn = self._next_spawn(k)
                 if spawn == k:
                     self._spawn(k)
@@ -290,6 +337,9 @@ class CompiledRun:
                 n = STRETCH_CYCLES if end < 0 else min(STRETCH_CYCLES, end - k)
                 if spawn is not None:
                     n = min(n, spawn - k)
+                send = self._next_send(k)
+                if send is not None:
+                    n = min(n, send - k)
                 self._fill_tables(k, n)
                 hw = self.hw
                 cycle.run_cycles(
@@ -302,12 +352,13 @@ class CompiledRun:
                     self.recorder is not None, self.trace_state, self.rows,
                     self.capture is not None, self.frame_state, self.frames, self.frame_times,
                     self.track is not None, self.track_state, self.poses, self.pose_times, self.xpos, self.xquat,
-                    self.bodies, out, *self.nac_arrays)
+                    self.bodies, out, *self.nac_arrays, *self._feedforward_arguments(), *self._executor_arguments())
                 stopped_at, status = int(out[cycle.CYCLE]), int(out[cycle.STATUS])
                 self._hand_over(int(out[cycle.ROWS]), int(out[cycle.FRAMES]), int(out[cycle.POSES]))
                 k = stopped_at
                 loop.cycle = k
-                if status != cycle.DONE:
+                self._finish_supervision()
+                if status not in (cycle.DONE, cycle.DECIDED):
                     break
         finally:
             self.unpack()
@@ -321,6 +372,91 @@ class CompiledRun:
 
         for f, source in self.tabled:
             fill_table(source, self.feed_tables[f], k, n, self.loop.period_s)
+
+    def _next_send(self, k: int) -> int | None:
+        cycles = [c for c in (s.next_cycle(k, self.loop.period_s) for s in self.senders) if c is not None]
+        return min(cycles) if cycles else None
+
+    def _no_feedback_callback(self) -> bool:
+        """False (and the loop goes on in Python) when the active goal delivers its feedback to a callback."""
+        goal = self.executor.executor.goals.active if self.executor is not None else None
+        if goal is None or goal.on_feedback is None:
+            return True
+        self.loop.mode = "python"
+        self.loop.mode_reason = "a trajectory goal delivers feedback to a callback: the run went on in Python"
+        return False
+
+    def _python_needed(self, k: int) -> bool:
+        """Whether cycle ``k`` runs in Python: a goal is sent at it, or the executor has an event to take (a goal
+        waiting, a stream, a cancel, a hardware fault)."""
+        if self._next_send(k) == k:
+            return True
+        if self.executor is None:
+            return False
+        ex = self.executor.executor
+        goal, plan = ex.goals.active, ex._plan
+        return (ex.goals.pending is not None or ex._streamed is not None or ex.hardware.fault is not None
+                or (goal is not None and goal.cancel_requested and plan is not None and not plan.stopping))
+
+    def _python_cycle(self, k: int) -> int:
+        """Run cycle ``k`` in Python, as the loop does, with every part's state in its object; then pack again.
+        Returns the next cycle."""
+        self.unpack()
+        loop, hw, manager = self.loop, self.loop.hardware, self.loop.manager
+        period = loop.period_s
+        t = k * period
+        loop.cycle = k
+        try:
+            for hook in loop.inputs:
+                hook(t)
+            hw.read()
+            failed = False
+            for update in manager.update_calls:
+                try:
+                    update(t, period)
+                except Exception as exc:  # noqa: BLE001  (the failure policy: see ControllerManager)
+                    manager.fail_update(update, exc, t)
+                    failed = True
+            for buf in hw.command_buffers:
+                total = sum(buf)
+                if total - total:  # NaN: a non-finite command somewhere in the list
+                    failed = True
+            if failed:
+                manager.check_outputs(t)
+            hw.write()
+            for hook in loop.observers:
+                hook(t)
+            hw.advance(period)
+            loop.cycle = k + 1
+        finally:
+            self.pack()  # (what the run's end puts back is then the objects' state, also after an error)
+        return k + 1
+
+    def _finish_supervision(self) -> None:
+        """The goal's end the executor's kernel decided at a cycle of the stretch, made in Python (the decision
+        again, the goal's result, the stop) with the state of that cycle's end."""
+        arrays = self.executor
+        if arrays is None or arrays.decided_cycle is None:
+            return
+        k = arrays.decided_cycle
+        self.unpack()
+        ex = arrays.executor
+        ex._supervise(k * self.loop.period_s, ex.goals.active, ex._plan)
+        self.pack()
+
+    def _executor_arguments(self) -> tuple:
+        ex = self.executor
+        if ex is None:
+            from jointctl.trajectory.executor_kernel import NoExecutor
+
+            ex = NoExecutor()
+        return (ex.parameters, ex.state, ex.hw_index, ex.ref, ex.path_tolerance, ex.goal_tolerance, ex.times,
+                ex.knots, ex.order, ex.coefficients, ex.ends, ex.feedback)
+
+    def _feedforward_arguments(self) -> tuple:
+        ff = self.feedforward
+        return (ff.addresses, ff.qpos, ff.qpos_adr, ff.tau, ff.qdd_full, ff.dof_adr, ff.to_model, ff.q, ff.qdd,
+                ff.wants_inertia, ff.model_out, ff.gravity, ff.inertia)
 
     def _hand_over(self, rows: int, frames: int, poses: int) -> None:
         """Give the observers what a stretch kept: trace rows, video frames, object poses."""
@@ -347,7 +483,11 @@ class CompiledRun:
         self.hw.unpack()
         names = self.hw.hardware.joint_names
         for c, kind, state, latest in zip(self.controllers, self.kinds, self.state, self.latest):
-            if kind == self.cycle.POSITION:
+            if kind == self.cycle.FEEDFORWARD:
+                self.feedforward.unpack()
+            elif kind == self.cycle.TRAJECTORY:
+                self.executor.unpack()
+            elif kind == self.cycle.POSITION:
                 unpack_position(c, state)
             elif kind == self.cycle.VELOCITY:
                 unpack_velocity(c, state)

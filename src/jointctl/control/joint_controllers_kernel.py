@@ -6,9 +6,9 @@ A controller is a row of parameters and a row of state (floats, indexed by the n
 or 0.0), row ``c`` of the compiled cycle's tables. :func:`pack_position` and :func:`pack_velocity` make them from the Python controller, and
 :func:`unpack_position` and :func:`unpack_velocity` put the state back, so a run can go on in Python at any
 cycle boundary. Covered: both derivative laws, position and velocity limits (clamps counted as in Python),
-continuous joints, the integral with its clamp and antiwindup, the damping feed-forward, the velocity
-controller's command watchdog. Not covered (the run stays in Python): the model feed-forward (gravity, inertia)
-and chained mode.
+continuous joints, the integral with its clamp and antiwindup, the feed-forward (damping, and the model's gravity
+and inertia read from the arrays of ``context_kernel``), chained mode (the upstream writes the reference interfaces
+as the Python does), the velocity controller's command watchdog.
 """
 
 from __future__ import annotations
@@ -22,10 +22,11 @@ from jointctl.jit import kernel
 #: The parameters row: the hardware joint index, the position range [m or rad], flags (a continuous joint,
 #: the derivative on the error's difference, the damping feed-forward), the joint damping [N·s/m or N·m·s/rad],
 #: the velocity limit [m/s or rad/s], then the PID's gains from ``PID``; after them a velocity controller's
-#: command timeout [s] (0: no watchdog).
+#: command timeout [s] (0: no watchdog), then flags: the gravity and inertia feed-forward, and whether the
+#: reference comes from an upstream controller (chained).
 JOINT, LOWER, UPPER, CONTINUOUS, ON_ERROR, FF_DAMPING, JOINT_DAMPING, VELOCITY_LIMIT, PID = range(9)
-COMMAND_TIMEOUT = PID + GAINS
-PARAMETERS = COMMAND_TIMEOUT + 1
+COMMAND_TIMEOUT, FF_GRAVITY, FF_INERTIA, CHAINED = range(PID + GAINS, PID + GAINS + 4)
+PARAMETERS = PID + GAINS + 4
 #: The state row: the PID's integral, the last error and whether there is one, the last rate, whether the
 #: edge's reference carries a velocity, the clamped cycles and the reference furthest outside (and whether any);
 #: the watchdog's: when the reference in hand was first seen [s], whether one came since the last update, and
@@ -56,9 +57,10 @@ def _unpack_common(c, state) -> None:
 
 
 def pack_position(c: JointPositionController) -> tuple[list[float], list[float]]:
-    """The parameters and state rows of a position controller (damping its only feed-forward, not chained)."""
-    return (_parameters(c, c.continuous, c._on_error, c._damping, c.joint_damping),
-            _state(c, c._last_error, c._last_valid, c._last_rate, c._edge_velocity))
+    """The parameters and state rows of a position controller."""
+    parameters = _parameters(c, c.continuous, c._on_error, c._damping, c.joint_damping)
+    parameters += [float(c._gravity), float(c._inertia), float(c.upstream is not None)]
+    return parameters, _state(c, c._last_error, c._last_valid, c._last_rate, c._edge_velocity)
 
 
 def unpack_position(c: JointPositionController, state) -> None:
@@ -137,8 +139,9 @@ def feed_velocity(parameters, state, c, value, velocities):
 
 @kernel
 def position_update(parameters, state, c, positions, velocities, references, position, velocity, effort_command,
-                    period_s):
-    """``JointPositionController.update``: the reference interfaces and measured state in, the effort out."""
+                    period_s, gravity, inertia):
+    """``JointPositionController.update``: the reference interfaces and measured state in (and the model
+    feed-forward's ``gravity`` and ``inertia`` efforts per hardware joint), the effort out."""
     i = int(parameters[c, JOINT])
     reference, reference_velocity = positions[i], velocities[i]
     lower, upper = parameters[c, LOWER], parameters[c, UPPER]
@@ -148,7 +151,7 @@ def position_update(parameters, state, c, positions, velocities, references, pos
     error = reference - position[i]
     if parameters[c, CONTINUOUS] != 0.0 and not -math.pi < error <= math.pi:
         error = wrap_angle(error)
-    if parameters[c, ON_ERROR] != 0.0 and state[c, EDGE_VELOCITY] == 0.0:
+    if parameters[c, ON_ERROR] != 0.0 and parameters[c, CHAINED] == 0.0 and state[c, EDGE_VELOCITY] == 0.0:
         if state[c, LAST_VALID] != 0.0:
             rate = (error - state[c, LAST_ERROR]) / period_s
         else:
@@ -159,8 +162,15 @@ def position_update(parameters, state, c, positions, velocities, references, pos
         rate = reference_velocity - velocity[i]
     state[c, LAST_RATE] = rate
     effort, state[c, I_STATE] = pid_compute(parameters, c, PID, state[c, I_STATE], error, rate, period_s)
-    if parameters[c, FF_DAMPING] != 0.0:
-        effort += parameters[c, JOINT_DAMPING] * reference_velocity
+    ff_gravity, ff_damping = parameters[c, FF_GRAVITY], parameters[c, FF_DAMPING]
+    ff_inertia = parameters[c, FF_INERTIA]
+    if ff_gravity != 0.0 or ff_damping != 0.0 or ff_inertia != 0.0:
+        if ff_gravity != 0.0:
+            effort += gravity[i]
+        if ff_damping != 0.0:
+            effort += parameters[c, JOINT_DAMPING] * reference_velocity
+        if ff_inertia != 0.0:
+            effort += inertia[i]
         limit = parameters[c, PID + OUTPUT_LIMIT]  # the joint's effort limit
         effort = limit if effort > limit else -limit if effort < -limit else effort
     effort_command[i] = effort

@@ -30,6 +30,7 @@ from jointctl.hardware.mujoco_hardware import MujocoHardware
 from jointctl.model.loader import description_text, load_robot_model
 from jointctl.model.robot_model import RobotModel
 from jointctl.runtime.clock import SimulatedClock, WallClockPacer
+from jointctl.runtime.goal_sender import GoalSender
 from jointctl.runtime.loop import ControlLoop
 from jointctl.runtime.spawner import ObjectSpawner
 from jointctl.scenario.plant import payload_link, varied_plant
@@ -243,17 +244,7 @@ def _goal_maker(goal: dict, source: str, index: int, executor: TrajectoryExecuto
     return lambda executor: executor.plan_path(array, timing=timing)
 
 
-def _goal_sender(session: Session, goals):
+def _goal_sender(session: Session, goals) -> GoalSender:
     """A loop input that submits each goal to its executor once loop time reaches ``at_s``;
     a refused goal is kept in ``session.rejected_goals``, not raised into the loop."""
-    pending = sorted(goals, key=lambda g: g[0])
-
-    def send(time_s: float) -> None:
-        while pending and time_s + 1e-9 >= pending[0][0]:
-            _, executor, make = pending.pop(0)
-            try:
-                session.goals.append(executor.submit(make(executor), now_s=time_s))
-            except InvalidTrajectory as exc:
-                session.rejected_goals.append((time_s, exc))
-
-    return send
+    return GoalSender(goals, session.goals, session.rejected_goals)
