@@ -391,7 +391,7 @@ def test_runs_may_alternate_between_the_paths_at_cycle_boundaries(write_scenario
 
 
 def test_a_stop_request_ends_a_compiled_run_after_its_stretch(write_scenario):
-    from jointctl.compiled.plan import STRETCH_CYCLES
+    from jointctl.compiled.run import STRETCH_CYCLES
 
     session = Session(load_scenario(write_scenario(step_scenario())))
     original = session.loop.compiler

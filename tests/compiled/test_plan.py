@@ -129,7 +129,7 @@ def test_the_loop_field_takes_auto_or_python(write_scenario):
 
 
 def test_a_hook_added_while_a_compiled_run_goes_takes_it_on_in_python_from_the_next_stretch(write_scenario):
-    from jointctl.compiled.plan import STRETCH_CYCLES
+    from jointctl.compiled.run import STRETCH_CYCLES
 
     session = Session(load_scenario(write_scenario(step_scenario(duration_s=5.0))))
     seen = []
