@@ -240,13 +240,14 @@ class JointLoop:
 
 
 def holding_effort(robot, joint: str, pose: dict, gravity_m_s2=(0.0, 0.0, -9.81),
-                   samples: int = 721) -> Callable[[float], float] | None:
+                   samples: int = 721, *, memo: dict | None = None) -> Callable[[float], float] | None:
     """``τ_hold(q)`` [N or N·m] of ``joint`` of ``robot`` with the other joints at ``pose`` (name -> position),
     read off the robot model at ``samples`` positions over the joint's range (a turn for a continuous joint,
-    ±1 m for a prismatic one without limits) and interpolated; None when it is 0 everywhere."""
+    ±1 m for a prismatic one without limits) and interpolated; None when it is 0 everywhere. ``memo``: a dict
+    keeping the answers for the same robot object, joint, other joints' pose, range and gravity (a sweep's runs
+    on one simulated robot ask the same)."""
     from jointctl.model.dynamics import RobotDynamics
 
-    dynamics = RobotDynamics(robot, gravity_m_s2=gravity_m_s2)
     names = [j.name for j in robot.movable_joints]
     k = names.index(joint)
     lower, upper, _ = robot.joint(joint).range_and_speed()
@@ -254,8 +255,20 @@ def holding_effort(robot, joint: str, pose: dict, gravity_m_s2=(0.0, 0.0, -9.81)
     if not math.isfinite(upper - lower):
         reach = math.pi if robot.joint(joint).type != "prismatic" else 1.0
         lower, upper = here - reach, here + reach
-    grid = np.linspace(min(lower, here), max(upper, here), samples)
     q = np.array([float(pose.get(name, 0.0)) for name in names])
+    key = ("holding_effort", id(robot), joint, tuple(np.delete(q, k).tolist()), min(lower, here), max(upper, here),
+           tuple(float(g) for g in gravity_m_s2), samples)
+    if memo is not None and key in memo:
+        return memo[key][1]  # (the robot, kept alive so that its id is not another's, the answer)
+    hold = _holding_effort(RobotDynamics(robot, gravity_m_s2=gravity_m_s2), k, q,
+                           np.linspace(min(lower, here), max(upper, here), samples))
+    if memo is not None:
+        memo[key] = (robot, hold)
+    return hold
+
+
+def _holding_effort(dynamics, k: int, q: np.ndarray, grid: np.ndarray) -> Callable[[float], float] | None:
+    samples = grid.size
     efforts = np.empty(samples)
     for n, value in enumerate(grid):
         q[k] = value

@@ -32,6 +32,8 @@ from jointctl.control.manager import ControllerManager, read_yaml
 from jointctl.errors import ConfigError
 from jointctl.hardware.imperfect import ImperfectHardware
 from jointctl.hardware.mujoco_hardware import MujocoHardware
+from jointctl.metrics.step_loop import holding_effort
+from jointctl.model.dynamics import RobotDynamics
 from jointctl.model.loader import description_text, load_robot_model
 from jointctl.model.robot_model import RobotModel
 from jointctl.runtime.clock import SimulatedClock, WallClockPacer
@@ -141,6 +143,8 @@ class Session:
                 raise ConfigError("a link of the robot already has that name", source=scenario.source,
                                   field=f"objects[{k}].name", value=obj.name)
         self.hardware = hardware
+        #: What :meth:`dynamics` and :meth:`holding_effort` keep: the world's (kept with it), else this session's.
+        self._derived: dict = self.world.derived if self.world is not None else {}
         self.manager = ControllerManager(self.hardware, self.robot, scenario.gravity_m_s2)
         self.manager.load_file(scenario.controller_file, scenario.controller_overrides)
         # Command sources are checked before any controller starts: nothing moves on bad input.
@@ -205,6 +209,24 @@ class Session:
     @property
     def trace_path(self) -> Path | None:
         return self.recorder.path if self.recorder is not None else None
+
+    def dynamics(self, robot: RobotModel, joints=None) -> RobotDynamics:
+        """The :class:`~jointctl.model.dynamics.RobotDynamics` of ``robot`` (the session's ``robot`` or ``plant``)
+        under the scenario's gravity, for ``joints`` (default: all movable joints): one object for whoever asks in
+        this session and, on a world kept for a sweep's runs, in the runs that follow. Its answers are those of the
+        pose last set: set the pose before reading it (as a new one needs too)."""
+        names = tuple(j.name for j in robot.movable_joints) if joints is None else tuple(joints)
+        gravity = tuple(float(g) for g in self.scenario.gravity_m_s2)
+        key = ("dynamics", id(robot), gravity, names)
+        found = self._derived.get(key)
+        if found is None:  # (the robot kept beside it: its id stays its own)
+            found = self._derived[key] = (robot, RobotDynamics(robot, gravity, joints=names))
+        return found[1]
+
+    def holding_effort(self, robot: RobotModel, joint: str, pose: dict):
+        """:func:`~jointctl.metrics.step_loop.holding_effort` of ``joint`` of ``robot`` (the session's ``robot`` or
+        ``plant``) under the scenario's gravity, kept as :meth:`dynamics` is."""
+        return holding_effort(robot, joint, pose, self.scenario.gravity_m_s2, memo=self._derived)
 
     def trace(self) -> Trace:
         """The trace kept in memory (``keep_trace``, no ``out_dir``), once the session is closed."""

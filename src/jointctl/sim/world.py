@@ -72,6 +72,9 @@ class MujocoWorld:
         # ros2_control's initial values first (checked against the limits by the URDF parser), then the caller's.
         self.initial_positions = {**robot.initial_positions, **self._check_initial(initial_positions or {}, source)}
         self.spawned: list[ObjectSpec] = []
+        #: What is derived from the robot simulated alone (its dynamics, for an analysis), kept with the world for
+        #: the runs that restart it (:meth:`~jointctl.scenario.session.Session.dynamics`).
+        self.derived: dict = {}
         #: Whether MuJoCo recompiled the model since it was built (objects spawned, even if removed again).
         self._recompiled = False
         self._rebuild_listeners: list[Callable[[], None]] = []
