@@ -143,6 +143,7 @@ def run_reused(monkeypatch, values_list, overrides=("duration_s=1.5",)):
     return reused, fresh, (kept.built, kept.reused)
 
 
+@pytest.mark.slow
 def test_a_run_on_a_kept_world_gives_the_row_of_a_fresh_build(monkeypatch):
     # Gains, model fields (payload, joint damping) and the initial pose vary; runs 2 and 4 restart worlds built for
     # runs 0 and 1 after a run on another world (3 kg then none: the kept world's masses are its own).
@@ -164,6 +165,7 @@ def test_a_run_on_a_kept_world_gives_the_row_of_a_fresh_build(monkeypatch):
         assert row.metrics["natural_frequency_rad_s"] == pytest.approx(wn, rel=wn * DT)
 
 
+@pytest.mark.slow
 def test_nothing_of_a_failed_run_leaks_into_the_next_on_its_world(monkeypatch):
     import tests.faulty_controllers  # noqa: F401  (registers FAULTY_TYPE in this process)
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from jointctl.sweep.sweep import CLUSTER_START_S, runs_here
 
 
@@ -14,6 +16,7 @@ def test_a_sweep_runs_here_unless_a_cluster_would_save_more_than_its_start():
     assert runs_here(1e6, 1)  # one worker never saves anything
 
 
+@pytest.mark.slow
 def test_a_sweep_on_kept_worlds_writes_the_table_of_one_that_builds_every_run(tmp_path):
     # Payloads outer, gains inner: each payload's world is built once and restarted for its other gains; the table
     # (every figure in full) is that of runs built whole, byte for byte, and the loop compiled in every run.

@@ -204,7 +204,8 @@ class MujocoWorld:
         spawned, gravity set) cannot restart (RuntimeError); build a new one."""
         if not self.is_as_built():
             raise RuntimeError("the world's model changed since it was built (an object spawned or gravity set)")
-        self.initial_positions = {**self.robot.initial_positions, **self._check_initial(initial_positions or {}, source)}
+        checked = self._check_initial(initial_positions or {}, source)
+        self.initial_positions = {**self.robot.initial_positions, **checked}
         self._rebuild_listeners = []
         self.reset()
 
