@@ -10,7 +10,12 @@ of one and of two worker processes (started, and their imports done, before the 
   time, the analysis);
 - the wall time of 1000 runs (payload 0..5 kg x Kp 200..800) on two workers, and its cost per run;
 - the cost of one run of the arm's Monte Carlo (arm7dof_pose, joint damping and payload drawn), for the estimate of
-  a cluster in docs/sweeps.md.
+  a cluster in docs/sweeps.md;
+- the throughput of a sweep as it runs (each worker keeps the worlds it built for the sweep's next runs, the loop
+  compiled, the trace in memory) against the old way, a run as jointctl 0.x ran it (:func:`old_way`: the session
+  built whole, the YAML files parsed, the Python loop, the trace written to ``trace.csv`` and read back), on the
+  same two workers: the same :data:`OLD_RUNS` runs each way, interleaved, best of :data:`REPEATS`, target >= 3x;
+  and the 1000 runs above against the old way's throughput.
 
 The 200-run sweeps on one and two workers are interleaved, three of each, and the fastest of each counts.
 
@@ -33,6 +38,9 @@ TARGET = "one_dof_step"
 RUNS = 200
 VARY_200 = [f"payload_kg=0:5:{RUNS}"]
 VARY_1000 = ["payload_kg=0:5:40", "controllers.joint1_position_controller.pid.p=200:800:25"]
+#: The runs measured both ways: the 1000 runs' gains on 8 of their 40 payloads (25 runs a payload, as in the 1000).
+OLD_RUNS = 200
+VARY_OLD = ["payload_kg=0:5:8", "controllers.joint1_position_controller.pid.p=200:800:25"]
 REPEATS = 3
 #: The arm's Monte Carlo sample, for the cost of one of its runs (docs/sweeps.md's estimate for a cluster).
 ARM_TARGET = "arm7dof_pose"
@@ -44,6 +52,7 @@ def _sweep(vary, engine):
     from jointctl.sweep import run_sweep
 
     result = run_sweep(TARGET, vary, engine=engine, nominal=False)
+    assert all(row.loop == "compiled" for row in result.rows)
     assert not result.errors, result.errors[0].error
     return result
 
@@ -58,6 +67,63 @@ for k in range(RUNS):
     assert evaluate(RunTask(k, "one_dof_step", {"payload_kg": 5.0 * k / RUNS})).error is None
 print(time.perf_counter() - start)
 """
+
+
+def old_way(task):
+    """A run as the sweep ran it before worlds were kept (the row's figures; its wall-clock time [s]): the YAML
+    files parsed, the robot's files read and its world compiled, the Python loop, the trace written to
+    ``trace.csv`` in a temporary folder and read back for the analysis."""
+    import tempfile
+
+    from jointctl.control import manager
+    from jointctl.recording.figures import not_drawn
+    from jointctl.recording.trace import load_trace
+    from jointctl.scenario.analyses import check_analysis
+    from jointctl.scenario.session import Session
+    from jointctl.sweep.runner import numbers, task_scenario
+
+    start = time.perf_counter()
+    manager._PARSED.clear()  # (read_yaml keeps what it parsed since)
+    scenario = task_scenario(task)
+    with tempfile.TemporaryDirectory(prefix="jointctl-run-") as tmp, not_drawn():
+        with Session(scenario, out_dir=Path(tmp), package_path=task.package_path) as session:
+            analysis = check_analysis(session)
+            session.run()
+        assert session.loop.mode == "python"
+        metrics = numbers(analysis(session, load_trace(session.trace_path), Path(tmp), scenario.analysis))
+    return metrics, time.perf_counter() - start
+
+
+def _tasks(vary, *, reuse: str | None, overrides=()):
+    from jointctl.sweep.runner import RunTask
+    from jointctl.sweep.variations import expand, variations_from
+
+    return [RunTask(k, TARGET, values, overrides=tuple(overrides), reuse=reuse)
+            for k, values in enumerate(expand(variations_from(vary), 1, 0))]
+
+
+def old_and_new(engine) -> tuple[float, float, float, float]:
+    """Wall times [s] of :data:`OLD_RUNS` runs the old way and the new way on ``engine``'s cluster, interleaved,
+    the fastest of :data:`REPEATS` each; and each way's mean run's own time [s]."""
+    import uuid
+
+    from jointctl.sweep.engine import evaluate_on_worker
+
+    client = engine.client
+    old_walls, new_walls, old_own, new_own = [], [], [], []
+    client.gather(client.map(old_way, _tasks(["payload_kg=[0, 1]"], reuse=None, overrides=["loop=python"]),
+                             pure=False))  # the Python loop's imports done on each worker
+    for _ in range(REPEATS):
+        start = time.perf_counter()
+        rows = client.gather(client.map(old_way, _tasks(VARY_OLD, reuse=None, overrides=["loop=python"]), pure=False))
+        old_walls.append(time.perf_counter() - start)
+        old_own.append(sum(own for _, own in rows) / len(rows))
+        start = time.perf_counter()
+        rows = client.gather(client.map(evaluate_on_worker, _tasks(VARY_OLD, reuse=uuid.uuid4().hex), pure=False))
+        new_walls.append(time.perf_counter() - start)
+        assert all(row.error is None and row.loop == "compiled" for row in rows)
+        new_own.append(sum(row.run_s for row in rows) / len(rows))
+    return min(old_walls), min(new_walls), min(old_own), min(new_own)
 
 
 def plain_processes(count: int, runs: int) -> float:
@@ -88,6 +154,7 @@ def run() -> list[Result]:
         start = time.perf_counter()
         thousand = _sweep(VARY_1000, two)
         wall_1000 = time.perf_counter() - start
+        wall_old, wall_new, own_old, own_new = old_and_new(two)
     with Engine(in_process=True) as here:
         arm = run_sweep_rows(ARM_TARGET, ARM_VARY, here)
     arm_run = min(r.run_s for r in arm)
@@ -98,6 +165,8 @@ def run() -> list[Result]:
     efficiency = single.wall_s / (2 * double.wall_s)
     own_2 = sum(r.run_s for r in double.rows) / RUNS  # above own: the two workers share the machine's cores
     per_run_1000 = sum(r.run_s for r in thousand.rows) / len(thousand.rows)
+    throughput = len(thousand.rows) / wall_1000  # runs per second, the new way
+    throughput_old = OLD_RUNS / wall_old
     return [
         Result("sweep", "one run's own time, in this process (baseline)", per_run_here * 1e3, "ms"),
         Result("sweep", "one run's own time, on 1 worker", own * 1e3, "ms"),
@@ -112,6 +181,18 @@ def run() -> list[Result]:
         Result("sweep", "1000 runs on 2 workers: wall time per run x workers / run's own time",
                wall_1000 * 2 / len(thousand.rows) / per_run_1000, "x"),
         Result("sweep", f"{ARM_TARGET}: one run's own time (fastest of {len(arm)}, in this process)", arm_run, "s"),
+        Result("sweep", "old way (built whole, Python loop, trace.csv): one run's own time, on each of 2 workers",
+               own_old * 1e3, "ms"),
+        Result("sweep", "new way (worlds kept, compiled loop, trace in memory): the same, on each of 2 workers",
+               own_new * 1e3, "ms"),
+        Result("sweep", f"old way: {OLD_RUNS} runs on 2 workers, throughput (fastest of {REPEATS})", throughput_old,
+               "runs/s"),
+        Result("sweep", f"new way: the same {OLD_RUNS} runs on 2 workers, throughput (fastest of {REPEATS})",
+               OLD_RUNS / wall_new, "runs/s"),
+        Result("sweep", f"new way / old way, {OLD_RUNS} runs on 2 workers, throughput", wall_old / wall_new, "x",
+               ">= 3", wall_old / wall_new >= 3),
+        Result("sweep", "new way, 1000 runs on 2 workers (throughput above) / old way's throughput",
+               throughput / throughput_old, "x"),
     ]
 
 

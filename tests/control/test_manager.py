@@ -465,3 +465,15 @@ def test_the_feed_forward_computes_inertia_only_while_a_running_controller_reads
     assert manager.context.feedforward.wants_inertia
     manager.stop(["joint1_position_controller"])
     assert not manager.context.feedforward.wants_inertia  # nothing running reads it any more
+
+
+def test_a_file_read_again_is_parsed_again_when_edited_and_each_reader_gets_its_own_copy(tmp_path):
+    # read_yaml keeps the texts it parsed (a sweep reads the same files for every run): an edit of the same size
+    # within the file system's time resolution is still read, and what one caller changes no other sees.
+    path = tmp_path / "gains.yaml"
+    path.write_text("pid: {p: 400.0, d: 1.0}\n")
+    first = read_yaml(path)
+    first["pid"]["p"] = -1.0
+    assert read_yaml(path) == {"pid": {"p": 400.0, "d": 1.0}}
+    path.write_text("pid: {p: 500.0, d: 1.0}\n")
+    assert read_yaml(path) == {"pid": {"p": 500.0, "d": 1.0}}

@@ -99,3 +99,23 @@ def test_an_integral_holds_the_payload_the_feed_forward_misses():
     q, integral = loop.rest(0.2)
     assert q == pytest.approx(0.2) and integral == pytest.approx(2.0 * G)
     assert math.isclose(loop.feedforward_effort(0.0), M * G)
+
+
+def test_a_kept_holding_effort_is_the_one_computed_for_the_same_robot_and_the_other_joints_pose():
+    from jointctl.metrics.step_loop import holding_effort
+    from jointctl.model.loader import load_robot_model
+    from jointctl.paths import robots_dir
+
+    arm = load_robot_model(robots_dir() / "arm7dof" / "urdf" / "arm7dof.xacro")
+    names = [j.name for j in arm.movable_joints]
+    pose = dict.fromkeys(names, 0.3)
+    memo: dict = {}
+    kept = holding_effort(arm, names[1], pose, memo=memo)
+    # The joint's own position is not part of the answer (the profile spans its range): the same one is kept.
+    assert holding_effort(arm, names[1], {**pose, names[1]: -0.2}, memo=memo) is kept
+    other = holding_effort(arm, names[1], {**pose, names[3]: 1.0}, memo=memo)  # another pose of a neighbour
+    fresh = holding_effort(arm, names[1], {**pose, names[3]: 1.0})
+    assert other is not kept and len(memo) == 2
+    grid = np.linspace(-1.5, 1.5, 31)
+    assert [other(q) for q in grid] == [fresh(q) for q in grid]
+    assert [kept(q) for q in grid] != [fresh(q) for q in grid]

@@ -87,3 +87,29 @@ def test_joint_without_a_controller_records_nan_command(write_scenario, tmp_path
         session.loop.add_observer(recorder)
         session.loop.run(cycles=3)
     assert np.isnan(load_trace(tmp_path / "t.csv").joint("joint1", "reference")).all()
+
+
+def test_a_trace_kept_in_memory_is_the_files_at_full_precision(write_scenario, tmp_path):
+    # The same run twice (simulated time: bit for bit the same), once to trace.csv and once in memory: the file
+    # keeps ten significant digits (%.10g), so its numbers are the memory's within half a unit of the tenth digit.
+    scenario = load_scenario(write_scenario(step_scenario(duration_s=0.2, record={"every": 3})))
+    out = tmp_path / "run"
+    with Session(scenario, out_dir=out) as on_disk:
+        on_disk.run()
+    with Session(scenario, keep_trace=True) as in_memory:
+        in_memory.run()
+    assert in_memory.trace_path is None and sorted(p.name for p in out.iterdir()) == ["trace.csv"]
+    file, memory = load_trace(out / "trace.csv"), in_memory.trace()
+    assert list(memory.columns) == list(file.columns) and len(memory.time_s) == len(file.time_s) == 67
+    for name, column in file.columns.items():
+        np.testing.assert_allclose(column, memory[name], rtol=5e-10, atol=0, err_msg=name)
+    assert not np.array_equal(file.joint("joint1", "position"), memory.joint("joint1", "position"))
+
+
+def test_a_memory_trace_is_there_once_closed():
+    session = Session(load_scenario("one_dof_step"), keep_trace=True)
+    session.run(0.01)
+    with pytest.raises(RuntimeError, match="once the recorder is closed"):
+        session.trace()
+    session.close()
+    assert len(session.trace().time_s) == 10

@@ -212,3 +212,55 @@ def test_gravity_can_change_and_survives_a_spawn_and_spawned_objects_can_be_remo
     world.spawn(weight)  # the same name may come again
     with pytest.raises(ConfigError, match="three finite numbers"):
         world.set_gravity((0.0, 0.0, float("nan")))
+
+
+def _state(world: MujocoWorld) -> dict:
+    """Every field of the world's MjData that a step reads or writes (MuJoCo's state, derived quantities and
+    warning counters)."""
+    d = world.data
+    fields = ("qpos", "qvel", "act", "ctrl", "qacc", "qacc_warmstart", "qfrc_applied", "xfrc_applied", "xpos",
+              "site_xpos", "sensordata", "actuator_force", "qfrc_bias")
+    return {"time": d.time, **{name: getattr(d, name).copy() for name in fields},
+            "warnings": [d.warning[k].number for k in range(len(d.warning))]}
+
+
+def test_a_restarted_world_is_in_the_state_a_new_world_starts_in(one_dof) -> None:
+    # A run left the world moving, its controls set and a warning counted; a restart at another pose is the new
+    # world built at that pose, to the last bit (mj_resetData zeroes MjData whole, then the pose is set).
+    world = MujocoWorld(one_dof, initial_positions={"joint1": -0.5})
+    world.data.ctrl[0] = 300.0
+    for _ in range(200):
+        world.step()
+    world.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number = 3
+    world.on_rebuild(lambda: None)
+    world.restart({"joint1": -0.2})
+    fresh = MujocoWorld(one_dof, initial_positions={"joint1": -0.2})
+    before, expected = _state(world), _state(fresh)
+    assert before["time"] == 0.0 and before["warnings"] == expected["warnings"]
+    for name, value in expected.items():
+        assert np.array_equal(before[name], value), name
+    assert world.initial_positions == {"joint1": -0.2} and world._rebuild_listeners == []
+    for w in (world, fresh):  # and it runs the same
+        w.data.ctrl[0] = 150.0
+        for _ in range(300):
+            w.step()
+    after, expected = _state(world), _state(fresh)
+    for name, value in expected.items():
+        assert np.array_equal(after[name], value), name
+
+
+def test_a_restart_checks_the_pose_and_refuses_a_changed_model(one_dof) -> None:
+    from jointctl.sim.objects import ObjectSpec
+
+    world = MujocoWorld(one_dof)
+    with pytest.raises(ConfigError, match="outside the joint's limits"):
+        world.restart({"joint1": 5.0})
+    world.set_gravity((0.0, 0.0, -1.0))
+    assert not world.is_as_built()
+    with pytest.raises(RuntimeError, match="changed since it was built"):
+        world.restart()
+    world.set_gravity((0.0, 0.0, -9.81))
+    assert world.is_as_built()
+    world.spawn(ObjectSpec("weight", "box", (0.05, 0.05, 0.05), 1.0, (0.0, 0.0, 2.0)))
+    world.remove_spawned()  # recompiled: the model is no longer the one built
+    assert not world.is_as_built()

@@ -108,3 +108,116 @@ def test_a_row_says_whether_the_run_was_still_moving_at_its_step(payload_kg):
     row = evaluate(RunTask(0, "one_dof_step", {"payload_kg": payload_kg}, overrides=("duration_s=1",)))
     assert row.error is None, row.error
     assert row.metrics["moving_at_step"] is (left > 0.02 * 0.3)
+
+
+# -- worlds kept between the runs of a sweep ----------------------------------------------------------------------
+P = "controllers.joint1_position_controller.pid.p"
+CONTROLLER = "controllers.joint1_position_controller"
+
+
+def same_rows(reused, fresh) -> None:
+    """The rows of the same task, one on a kept world and one built whole: every figure, the error, the loop and
+    the decimated trace equal, to the last bit (the same operations on the same state)."""
+    assert reused.error == fresh.error
+    assert reused.metrics == fresh.metrics  # floats compared exactly, None (not measured) where both have None
+    assert (reused.loop, reused.loop_reason) == (fresh.loop, fresh.loop_reason)
+    if fresh.trace is None:
+        assert reused.trace is None
+        return
+    assert reused.trace["joint"] == fresh.trace["joint"]
+    for name in ("time_s", "position", "reference"):
+        assert np.array_equal(reused.trace[name], fresh.trace[name]), name
+
+
+def run_reused(monkeypatch, values_list, overrides=("duration_s=1.5",)):
+    """Each values' run on worlds kept in this process (one sweep's key; a clean cache), in order, then the same
+    task built whole; and the worlds built and reused by the first."""
+    from jointctl.sweep import runner
+
+    kept = runner.BuiltWorlds()
+    monkeypatch.setattr(runner, "WORLDS", kept)
+    tasks = [RunTask(k, "one_dof_step", values, overrides=overrides, reuse="a sweep")
+             for k, values in enumerate(values_list)]
+    reused = [evaluate(task) for task in tasks]
+    fresh = [evaluate(RunTask(t.index, t.target, t.values, overrides=t.overrides)) for t in tasks]
+    return reused, fresh, (kept.built, kept.reused)
+
+
+@pytest.mark.slow
+def test_a_run_on_a_kept_world_gives_the_row_of_a_fresh_build(monkeypatch):
+    # Gains, model fields (payload, joint damping) and the initial pose vary; runs 2 and 4 restart worlds built for
+    # runs 0 and 1 after a run on another world (3 kg then none: the kept world's masses are its own).
+    values = [
+        {"payload_kg": 3.0, P: 600.0, "initial_positions.joint1": -0.1},
+        {"payload_kg": 0.0, P: 300.0, "initial_positions.joint1": -0.25},
+        {"payload_kg": 3.0, P: 450.0, "initial_positions.joint1": -0.3},
+        {"payload_kg": 0.0, P: 300.0, "initial_positions.joint1": -0.25, "model.joint1.damping": 20.0},
+        {"payload_kg": 0.0, P: 800.0, "initial_positions.joint1": -0.15},
+    ]
+    reused, fresh, (built, restarted) = run_reused(monkeypatch, values)
+    assert (built, restarted) == (3, 2)
+    for r, f in zip(reused, fresh):
+        assert r.error is None, r.error
+        same_rows(r, f)
+    # The theory still holds on the restarted worlds: ωn = √(Kp/m) with the run's own mass and gain.
+    for row, m in ((reused[2], M_KG + 3.0), (reused[4], M_KG)):
+        wn = math.sqrt(row.values[P] / m)
+        assert row.metrics["natural_frequency_rad_s"] == pytest.approx(wn, rel=wn * DT)
+
+
+@pytest.mark.slow
+def test_nothing_of_a_failed_run_leaks_into_the_next_on_its_world(monkeypatch):
+    import tests.faulty_controllers  # noqa: F401  (registers FAULTY_TYPE in this process)
+
+    normal = {P: 500.0}
+    values = [
+        normal,
+        {"gravity": -1e12},  # MuJoCo warns (BADQACC) mid-run: a world of its own
+        {"gravity": -1e12, P: 100.0},  # ... restarted after it blew up: the same warning at the same time
+        {f"{CONTROLLER}.type": FAULTY_TYPE, f"{CONTROLLER}.fail_above": -0.3},  # fails at the step, the run goes on
+        {P: -5.0},  # refused while the session is built, its world already restarted
+        {"duration_s": 0.4},  # the run ends; its analysis fails
+        {P: 500.0, "initial_positions.joint1": -0.3},
+        normal,
+    ]
+    reused, fresh, (built, restarted) = run_reused(monkeypatch, values)
+    assert (built, restarted) == (2, 6)
+    kinds = [r.error.split(":")[0] if r.error else None for r in reused]
+    assert kinds == [None, "PhysicsError", "PhysicsError", "ControllerFailed", "ConfigError", "AnalysisError", None,
+                     None]
+    for r, f in zip(reused, fresh):
+        same_rows(r, f)
+    same_rows(reused[-1], reused[0])  # the last run is the first again, after everything
+
+
+def test_a_rows_loop_says_the_one_dof_step_ran_compiled():
+    row = evaluate(RunTask(0, "one_dof_step", {P: 500.0}, overrides=("duration_s=1",), reuse="a sweep"))
+    assert row.error is None and (row.loop, row.loop_reason) == ("compiled", None)
+    row = evaluate(RunTask(0, "one_dof_step", {"loop": "python"}, overrides=("duration_s=1",)))
+    assert row.loop == "python" and "loop: python" in row.loop_reason
+
+
+def test_kept_worlds_are_bounded_and_belong_to_one_sweep():
+    from jointctl.scenario.session import simulated_world
+    from jointctl.scenario.spec import load_scenario
+    from jointctl.sweep.runner import BuiltWorlds
+
+    kept = BuiltWorlds(size=2)
+    scenario = load_scenario("one_dof_step")
+    worlds = {}
+    for payload in (0.0, 1.0, 2.0):
+        task = RunTask(0, "one_dof_step", {}, reuse="a")
+        changed = load_scenario("one_dof_step", [f"payload_kg={payload}"])
+        robot, world, key = kept.take(task, changed)
+        assert world is None
+        worlds[payload] = simulated_world(robot, changed)
+        kept.keep(key, worlds[payload])
+    assert len(kept._worlds) == 2 and len(kept._robots) == 1
+    _, world, _ = kept.take(RunTask(0, "one_dof_step", {}, reuse="a"), scenario)
+    assert world is None  # payload 0 was the least recently used: dropped
+    _, world, _ = kept.take(RunTask(0, "one_dof_step", {}, reuse="a"),
+                            load_scenario("one_dof_step", ["payload_kg=2.0"]))
+    assert world is worlds[2.0]
+    _, world, _ = kept.take(RunTask(0, "one_dof_step", {}, reuse="another sweep"),
+                            load_scenario("one_dof_step", ["payload_kg=1.0"]))
+    assert world is None  # another sweep reads the files again

@@ -87,13 +87,26 @@ def read_yaml(path: str | Path) -> Any:
         raise ConfigError("file not found", source=str(path)) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot read: {exc}", source=str(path)) from None
+    parsed = _PARSED.get(text)
+    if parsed is not None:  # the same text parsed before (a sweep reads its files for every run): a copy of it
+        return copy.deepcopy(parsed)
     try:
-        return load_yaml_text(text)
+        parsed = load_yaml_text(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
         problem = getattr(exc, "problem", None) or str(exc)
         raise ConfigError(f"not valid YAML: {where}{problem}", source=str(path)) from None
+    if len(_PARSED) >= PARSED_FILES:
+        _PARSED.pop(next(iter(_PARSED)), None)  # the first kept
+    _PARSED[text] = parsed
+    return copy.deepcopy(parsed)
+
+
+#: Files' texts parsed by :func:`read_yaml` kept with what they gave (keyed by the text itself: an edited file is
+#: parsed again), the last ones parsed.
+PARSED_FILES = 32
+_PARSED: dict[str, Any] = {}
 
 
 def ros2_update_rate(path: str | Path) -> tuple[int, str] | None:

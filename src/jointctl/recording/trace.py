@@ -12,6 +12,7 @@ controller commanding the joint: a position or a velocity; NaN when none), ``<jo
 from __future__ import annotations
 
 import csv
+import io
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -32,11 +33,14 @@ class TraceRecorder:
     every ``chunk_rows`` rows; closing formats the spool into CSV chunk by
     chunk and removes it. Formatting text costs more than a control cycle, so
     it stays out of the loop, and memory stays flat however long the run.
+
+    With ``path`` None the rows stay in memory, at full float64 precision (the CSV keeps ten significant digits),
+    and :meth:`trace` gives them once closed: no file is written (a sweep's run, whose row keeps only figures).
     """
 
     def __init__(
         self,
-        path: str | Path,
+        path: str | Path | None,
         hardware: HardwareInterface,
         references: Sequence[float],
         *,
@@ -45,7 +49,7 @@ class TraceRecorder:
     ) -> None:
         if every < 1:
             raise ValueError(f"every must be at least 1, got {every}")
-        self.path = Path(path)
+        self.path = Path(path) if path is not None else None
         self.hardware = hardware
         self._references = references
         self.every = every
@@ -59,9 +63,14 @@ class TraceRecorder:
         wrenches = tuple(hardware.wrenches[s] for s in hardware.sensor_names)
         self._wrench = wrenches[0] if len(wrenches) == 1 else None
         self._wrenches = wrenches
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._spool_path = self.path.with_name(f".{self.path.name}.f64")
-        self._spool = self._spool_path.open("wb")
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._spool_path = self.path.with_name(f".{self.path.name}.f64")
+            self._spool = self._spool_path.open("wb")
+        else:
+            self._spool_path = None
+            self._spool = io.BytesIO()
+        self._trace: Trace | None = None
         self.closed = False
         #: Called as :meth:`close` formats the spool, with each block of rows (float64, rows x columns) and
         #: their lines of trace.csv (text, no newline): other records of the same rows (``run.mcap``) are
@@ -105,6 +114,12 @@ class TraceRecorder:
         if self.closed:
             return
         self.flush()
+        if self.path is None:
+            data = np.frombuffer(self._spool.getvalue(), dtype="<f8").reshape(-1, len(self.columns)).copy()
+            self._spool.close()
+            self._trace = Trace({name: data[:, k] for k, name in enumerate(self.columns)})
+            self.closed = True
+            return
         self._spool.close()
         width = len(self.columns)
         row_format = ",".join(["%.10g"] * width)
@@ -129,6 +144,13 @@ class TraceRecorder:
         self.closed = True
         if failure is not None:
             raise failure
+
+    def trace(self) -> Trace:
+        """The rows recorded, as :func:`load_trace` would read them back but at full precision (a recorder
+        without a ``path``, closed)."""
+        if self._trace is None:
+            raise RuntimeError("the trace is kept in memory only without a path, once the recorder is closed")
+        return self._trace
 
     def __enter__(self) -> TraceRecorder:
         return self

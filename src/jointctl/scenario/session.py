@@ -10,6 +10,11 @@ link, more damping), while the controllers and their feed-forward keep the nomin
 :class:`~jointctl.hardware.imperfect.ImperfectHardware` (commands that arrive late, noisy sensors) before the
 controllers are given its handles. Given hardware has its own: these settings are refused with it.
 
+A session is built whole for each run, or (a sweep's many runs) from a robot model and a world kept from an
+earlier run of the same robot (:func:`world_key` says which runs share a world): the world restarts as a new one
+starts (:meth:`~jointctl.sim.world.MujocoWorld.restart`), every other part (hardware, controllers, sources,
+loop, recorder) is built anew.
+
 A :class:`Session` owns every part of one run and wires the edges to the loop:
 each command source feeds its controller at the start of a cycle, and the
 recorder, when an output folder is given, observes the end of each cycle (and, with ``mcap``, the
@@ -27,6 +32,8 @@ from jointctl.control.manager import ControllerManager, read_yaml
 from jointctl.errors import ConfigError
 from jointctl.hardware.imperfect import ImperfectHardware
 from jointctl.hardware.mujoco_hardware import MujocoHardware
+from jointctl.metrics.step_loop import holding_effort
+from jointctl.model.dynamics import RobotDynamics
 from jointctl.model.loader import description_text, load_robot_model
 from jointctl.model.robot_model import RobotModel
 from jointctl.runtime.clock import SimulatedClock, WallClockPacer
@@ -41,7 +48,7 @@ from jointctl.sim.world import MujocoWorld
 from jointctl.commands.limits import check_within_limits
 from jointctl.commands.sources import CommandSource, SourceFeed, command_source_from_config
 from jointctl.recording.mcap_record import MCAP_FILE, McapRecorder
-from jointctl.recording.trace import TraceRecorder
+from jointctl.recording.trace import Trace, TraceRecorder
 from jointctl.commands.sine_trajectory import coarse_sine
 from jointctl.trajectory.errors import InvalidTrajectory
 from jointctl.trajectory.executor import TrajectoryExecutor
@@ -61,8 +68,33 @@ def simulated_robot(robot: RobotModel, scenario: Scenario) -> RobotModel:
     return varied_plant(robot, scenario.model_changes, scenario.payload_kg, link, scenario.source)
 
 
+def world_key(scenario: Scenario) -> tuple:
+    """What the simulated world of ``scenario`` is built from, as a key: two scenarios with the same key simulate
+    the same compiled model (the robot's files, its ``model.*`` changes and payload, the physics step, gravity,
+    the floor); everything else a scenario sets (controllers, gains, commands, initial pose, durations, latency,
+    noise, objects spawned as it runs) is set on a world restarted as new."""
+    robot = scenario.robot
+    return (str(robot.description), str(robot.manifest or ""), tuple(sorted(scenario.model_changes.items())),
+            float(scenario.payload_kg or 0.0), float(scenario.timestep_s),
+            tuple(float(g) for g in scenario.gravity_m_s2), bool(scenario.floor))
+
+
+def simulated_world(robot: RobotModel, scenario: Scenario) -> MujocoWorld:
+    """The simulated world of ``scenario`` (its :func:`simulated_robot` under its settings), built at its initial
+    positions."""
+    settings = WorldSettings(scenario.timestep_s, scenario.gravity_m_s2, scenario.floor)
+    return MujocoWorld(simulated_robot(robot, scenario), settings, initial_positions=scenario.initial_positions,
+                       source=scenario.source)
+
+
 class Session:
-    """Everything one scenario run needs, built and validated before anything moves."""
+    """Everything one scenario run needs, built and validated before anything moves.
+
+    ``robot`` and ``world`` (a sweep's, kept from an earlier run): the robot's model as loaded from the scenario's
+    description, and a world :func:`simulated_world` built of it for a scenario of the same :func:`world_key`;
+    the session restarts the world at this scenario's initial positions and owns it for the run. Without an
+    ``out_dir``, ``keep_trace`` records the trace in memory (:meth:`trace`) instead of to a file.
+    """
 
     def __init__(
         self,
@@ -74,24 +106,32 @@ class Session:
         package_path: tuple[str, ...] = (),
         hardware: HardwareInterface | None = None,
         mcap: bool = False,
+        robot: RobotModel | None = None,
+        world: MujocoWorld | None = None,
+        keep_trace: bool = False,
     ) -> None:
         self.scenario = scenario
         #: The robot's model: what the controllers (and their feed-forward) know.
-        self.robot: RobotModel = load_robot_model(scenario.robot.description, search_path=package_path)
+        self.robot: RobotModel = robot if robot is not None else load_robot_model(scenario.robot.description,
+                                                                                   search_path=package_path)
         #: The robot simulated (:func:`simulated_robot`): the robot's model itself unless the scenario changes it.
         self.plant: RobotModel = self.robot
         #: The simulated world (None when the session drives given ``hardware``, e.g. a real robot).
         self.world: MujocoWorld | None = None
         if hardware is None:
-            self.plant = simulated_robot(self.robot, scenario)
-            settings = WorldSettings(scenario.timestep_s, scenario.gravity_m_s2, scenario.floor)
-            self.world = MujocoWorld(self.plant, settings, initial_positions=scenario.initial_positions,
-                                     source=scenario.source)
+            if world is not None:
+                world.restart(scenario.initial_positions, source=scenario.source)
+            else:
+                world = simulated_world(self.robot, scenario)
+            self.world = world
+            self.plant = world.robot
             hardware = MujocoHardware(self.world)
             if scenario.imperfect:
                 hardware = ImperfectHardware(hardware, latency_cycles=scenario.latency_cycles,
                                              position_noise=scenario.noise.position,
                                              velocity_noise=scenario.noise.velocity, seed=scenario.noise.seed)
+        elif world is not None:
+            raise ValueError("a session drives either given hardware or a simulated world, not both")
         elif scenario.robot_settings():
             name, value = next(iter(scenario.robot_settings().items()))
             raise ConfigError("is a setting of the simulated robot; this hardware is given (a real robot has its "
@@ -104,6 +144,8 @@ class Session:
                 raise ConfigError("a link of the robot already has that name", source=scenario.source,
                                   field=f"objects[{k}].name", value=obj.name)
         self.hardware = hardware
+        #: What :meth:`dynamics` and :meth:`holding_effort` keep: the world's (kept with it), else this session's.
+        self._derived: dict = self.world.derived if self.world is not None else {}
         self.manager = ControllerManager(self.hardware, self.robot, scenario.gravity_m_s2)
         self.manager.load_file(scenario.controller_file, scenario.controller_overrides)
         # Command sources are checked before any controller starts: nothing moves on bad input.
@@ -152,13 +194,13 @@ class Session:
             self.loop.add_input(_goal_sender(self, goals))
         self.recorder: TraceRecorder | None = None
         self.out_dir = Path(out_dir) if out_dir is not None else None
-        if self.out_dir is not None:
-            self.recorder = TraceRecorder(self.out_dir / TRACE_FILE, self.hardware,
-                                          self.manager.references, every=scenario.record_every)
+        if self.out_dir is not None or keep_trace:
+            self.recorder = TraceRecorder(self.out_dir / TRACE_FILE if self.out_dir is not None else None,
+                                          self.hardware, self.manager.references, every=scenario.record_every)
             self.loop.add_observer(self.recorder)
         #: ``run.mcap`` beside the trace (with ``mcap``): the same rows and more for Foxglove and PlotJuggler.
         self.mcap: McapRecorder | None = None
-        if self.recorder is not None and mcap:
+        if self.out_dir is not None and mcap:
             self.mcap = McapRecorder(
                 self.out_dir / MCAP_FILE, robot=self.robot, hardware=self.hardware, manager=self.manager,
                 loop=self.loop, urdf=description_text(self.robot, package_path), every=scenario.record_every,
@@ -168,6 +210,30 @@ class Session:
     @property
     def trace_path(self) -> Path | None:
         return self.recorder.path if self.recorder is not None else None
+
+    def dynamics(self, robot: RobotModel, joints=None) -> RobotDynamics:
+        """The :class:`~jointctl.model.dynamics.RobotDynamics` of ``robot`` (the session's ``robot`` or ``plant``)
+        under the scenario's gravity, for ``joints`` (default: all movable joints): one object for whoever asks in
+        this session and, on a world kept for a sweep's runs, in the runs that follow. Its answers are those of the
+        pose last set: set the pose before reading it (as a new one needs too)."""
+        names = tuple(j.name for j in robot.movable_joints) if joints is None else tuple(joints)
+        gravity = tuple(float(g) for g in self.scenario.gravity_m_s2)
+        key = ("dynamics", id(robot), gravity, names)
+        found = self._derived.get(key)
+        if found is None:  # (the robot kept beside it: its id stays its own)
+            found = self._derived[key] = (robot, RobotDynamics(robot, gravity, joints=names))
+        return found[1]
+
+    def holding_effort(self, robot: RobotModel, joint: str, pose: dict):
+        """:func:`~jointctl.metrics.step_loop.holding_effort` of ``joint`` of ``robot`` (the session's ``robot`` or
+        ``plant``) under the scenario's gravity, kept as :meth:`dynamics` is."""
+        return holding_effort(robot, joint, pose, self.scenario.gravity_m_s2, memo=self._derived)
+
+    def trace(self) -> Trace:
+        """The trace kept in memory (``keep_trace``, no ``out_dir``), once the session is closed."""
+        if self.recorder is None:
+            raise RuntimeError("this session records no trace")
+        return self.recorder.trace()
 
     def run(self, duration_s: float | None = None) -> float:
         """Run for ``duration_s`` (default: the scenario's); returns the real-time factor."""

@@ -72,6 +72,11 @@ class MujocoWorld:
         # ros2_control's initial values first (checked against the limits by the URDF parser), then the caller's.
         self.initial_positions = {**robot.initial_positions, **self._check_initial(initial_positions or {}, source)}
         self.spawned: list[ObjectSpec] = []
+        #: What is derived from the robot simulated alone (its dynamics, for an analysis), kept with the world for
+        #: the runs that restart it (:meth:`~jointctl.scenario.session.Session.dynamics`).
+        self.derived: dict = {}
+        #: Whether MuJoCo recompiled the model since it was built (objects spawned, even if removed again).
+        self._recompiled = False
         self._rebuild_listeners: list[Callable[[], None]] = []
         self.reset()
 
@@ -111,6 +116,7 @@ class MujocoWorld:
             self.model, self.data = self.spec.recompile(self.model, self.data)
         except Exception as exc:
             raise ConfigError(f"MuJoCo refused the object: {exc}", field="objects", value=obj.name) from None
+        self._recompiled = True
         mujoco.mj_forward(self.model, self.data)  # derived quantities (poses, forces, sensors) now
         self.spawned.append(obj)
         self._resolve_addresses()
@@ -189,6 +195,25 @@ class MujocoWorld:
     @property
     def time_s(self) -> float:
         return float(self.data.time)
+
+    def restart(self, initial_positions: Mapping[str, float] | None = None, *, source: str | None = None) -> None:
+        """Start over as a new world of the same robot and settings starts: at rest at time zero, at
+        ``initial_positions`` (checked as the constructor checks them), MuJoCo's data reset whole
+        (``mj_resetData``: state, warnings, controls), the listeners of the model's rebuilds dropped (their owners,
+        the last run's hardware, are gone). The compiled model is kept: a world whose model changed (an object
+        spawned, gravity set) cannot restart (RuntimeError); build a new one."""
+        if not self.is_as_built():
+            raise RuntimeError("the world's model changed since it was built (an object spawned or gravity set)")
+        checked = self._check_initial(initial_positions or {}, source)
+        self.initial_positions = {**self.robot.initial_positions, **checked}
+        self._rebuild_listeners = []
+        self.reset()
+
+    def is_as_built(self) -> bool:
+        """Whether the model is still the one compiled from the robot and settings: no object spawned (or removed:
+        MuJoCo recompiled it), gravity the settings'."""
+        built = [float(g) for g in self.settings.gravity_m_s2]
+        return not self.spawned and not self._recompiled and [float(g) for g in self.model.opt.gravity] == built
 
     def reset(self) -> None:
         """Back to time zero, at rest, at the initial joint positions."""

@@ -47,6 +47,7 @@ beyond the 1000 N limit): gravity binds, and the integral holds the load.
 from __future__ import annotations
 
 import math
+import uuid
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -647,6 +648,7 @@ def check_on_robot(target: str, controllers: str | None, overrides: Sequence[str
 
     loop = design.loop
     after = check_after_s(design.settling_s)
+    reuse = uuid.uuid4().hex  # the plants' runs keep the robot's model (each plant is a world of its own)
     common = [*overrides, *setting_overrides(controller_name, loop_fields(loop, joint))]
     tasks, holds = [], []
     for k, plant in enumerate(plants):
@@ -664,7 +666,8 @@ def check_on_robot(target: str, controllers: str | None, overrides: Sequence[str
                  f"commands.{controller_name}={command}",
                  # The step analysis reads a step, not a ramp: its figures (the saturation) only for a step.
                  "analysis=null" if design.ramp_s else f"analysis={{type: step_response, joint: {joint}}}"]
-        tasks.append(RunTask(k, target, dict(plant.values), 0, controllers, tuple(items), trace_points=10**9))
+        tasks.append(RunTask(k, target, dict(plant.values), 0, controllers, tuple(items), trace_points=10**9,
+                             reuse=reuse))
         holds.append(hold)
     with Engine(scheduler=scheduler, workers=workers, in_process=scheduler is None and workers is None) as engine:
         rows, _ = engine.run(tasks)

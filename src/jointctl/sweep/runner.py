@@ -3,8 +3,19 @@
 A run is an ordinary scenario run (the same :class:`~jointctl.scenario.session.Session`, loop and analysis as
 ``jointctl run``) with the task's values set as ``--set`` items: every field a sweep varies is the scenario's
 (``model.*``, ``payload_kg``, ``latency_cycles`` and ``noise.*`` too, which the session applies to the simulated
-robot only). The analysis draws no figures (a sweep keeps the numbers) and the trace goes to a temporary folder;
-the row keeps the analysed joint's position and reference, decimated, for the overlay figure.
+robot only). The analysis draws no figures (a sweep keeps the numbers) and reads the trace from memory, at full
+precision (no ``trace.csv`` is written); the row keeps the analysed joint's position and reference, decimated,
+for the overlay figure, and which loop ran it (``loop``: ``compiled`` or ``python``).
+
+*Built worlds kept.* Building a session parses the robot's description (xacro, URDF) and compiles its MuJoCo
+model; on the 1-DOF robot that costs as much as its 3 s of compiled loop. The runs of one sweep (the tasks
+sharing a ``reuse`` key) keep, in the process that runs them (:data:`WORLDS`, a Dask worker's or this one's),
+the robot's model and the simulated world of each :func:`~jointctl.scenario.session.world_key` (the robot's
+files, its ``model.*`` changes and payload, the physics step, gravity, the floor): a run whose world was built
+for an earlier one restarts it (MuJoCo's ``mj_resetData``, its initial positions) and builds every other part
+anew (hardware, controllers, command sources, loop, recorder), so it starts from the state a new build gives and
+its row is the same, to the last digit. A world whose model changed in its run (an object spawned) is not kept.
+The keys include the sweep's own ``reuse`` key: a file edited between two sweeps is read again.
 
 Whatever goes wrong in a run (bad values, a controller that failed, unstable physics, a refused goal, an
 analysis that cannot read the response, any exception) becomes the row's ``error``, never an exception.
@@ -14,7 +25,9 @@ from __future__ import annotations
 
 import math
 import tempfile
+import threading
 import time
+from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,10 +36,12 @@ from typing import Any
 import numpy as np
 
 from jointctl.errors import JointCtlError
+from jointctl.model.loader import load_robot_model
+from jointctl.model.robot_model import RobotModel
 from jointctl.recording.figures import not_drawn
-from jointctl.recording.trace import load_trace
 from jointctl.scenario.analyses import check_analysis
-from jointctl.scenario.session import Session
+from jointctl.scenario.session import Session, world_key
+from jointctl.sim.world import MujocoWorld
 from jointctl.scenario.spec import Scenario
 from jointctl.scenario.targets import resolve_target
 from jointctl.sweep.variations import noise_seed, yaml_text
@@ -38,13 +53,16 @@ ROBOT_RUN_S = 5.0
 NOT_ROW_METRICS = ("expected", "plant", "scenario", "real_time_factor", "video")
 #: Samples kept of the analysed joint's response (for the overlay figure).
 TRACE_POINTS = 400
+#: Simulated worlds (and robot models) a process keeps for the runs that follow, the most recently used.
+KEPT_WORLDS = 8
 
 
 @dataclass(frozen=True)
 class RunTask:
     """Everything one run needs, small and picklable (it travels to a worker): the target (a scenario or a
     robot, as :func:`~jointctl.scenario.targets.resolve_target` reads it), its controller file, ``--set``
-    items applied to every run, this run's ``values`` (field -> value), the sweep's ``seed``."""
+    items applied to every run, this run's ``values`` (field -> value), the sweep's ``seed``; ``reuse`` the
+    sweep's key for the worlds its runs share (:data:`WORLDS`; None: the run builds its own)."""
 
     index: int
     target: str
@@ -54,6 +72,7 @@ class RunTask:
     overrides: tuple[str, ...] = ()
     package_path: tuple[str, ...] = ()
     trace_points: int = TRACE_POINTS
+    reuse: str | None = None
 
 
 @dataclass
@@ -62,7 +81,8 @@ class Row:
     ``error`` that ended it (``"PhysicsError: ..."``); ``trace`` the analysed joint's decimated response
     (``joint``, ``time_s`` [s], ``position`` and ``reference`` [m or rad]); ``run_s`` the run's own wall-clock
     time in its worker [s]; ``passed`` the verdict of the sweep's spec (None without one, or on error); ``worker``
-    the address of the Dask worker that ran it (None in this process; not part of the table)."""
+    the address of the Dask worker that ran it (None in this process; not part of the table); ``loop`` the loop
+    that ran it, ``compiled`` or ``python`` (``loop_reason`` why python; None when it did not run)."""
 
     index: int
     values: dict[str, Any]
@@ -72,6 +92,66 @@ class Row:
     run_s: float = 0.0
     passed: bool | None = None
     worker: str | None = None
+    loop: str | None = None
+    loop_reason: str | None = None
+
+
+class BuiltWorlds:
+    """The robot models and simulated worlds one process keeps between the runs of a sweep (see the module
+    docstring), at most ``size`` of each, the least recently used dropped first. A world is taken out while its
+    run uses it (two threads of one worker never share one) and kept again after. ``built`` and ``reused`` count
+    the worlds built and restarted."""
+
+    def __init__(self, size: int = KEPT_WORLDS) -> None:
+        self.size = size
+        self._robots: OrderedDict[tuple, RobotModel] = OrderedDict()
+        self._worlds: OrderedDict[tuple, MujocoWorld] = OrderedDict()
+        self._lock = threading.Lock()
+        self.built = 0
+        self.reused = 0
+
+    def take(self, task: RunTask, scenario: Scenario) -> tuple[RobotModel, MujocoWorld | None, tuple]:
+        """The robot model of ``scenario`` (loaded once per sweep) and a world kept for its key (None: the session
+        builds one), and the key to keep it under after the run."""
+        robot_key = (task.reuse, task.package_path, str(scenario.robot.description))
+        key = (task.reuse, task.package_path, *world_key(scenario))
+        with self._lock:
+            robot = self._robots.get(robot_key)
+            world = self._worlds.pop(key, None)
+            if robot is not None:
+                self._robots.move_to_end(robot_key)
+        if robot is None:
+            robot = load_robot_model(scenario.robot.description, search_path=task.package_path)
+            self._keep(self._robots, robot_key, robot)
+        if world is not None and world.robot is not robot and not scenario.changes_robot:
+            world = None  # built of another load of the robot's files (not the model the controllers get)
+        if world is None:
+            self.built += 1
+        else:
+            self.reused += 1
+        return robot, world, key
+
+    def keep(self, key: tuple, world: MujocoWorld | None) -> None:
+        """Keep ``world`` for the next run of ``key``, unless its model changed in its run."""
+        if world is not None and world.is_as_built():
+            self._keep(self._worlds, key, world)
+
+    def _keep(self, kept: OrderedDict, key: tuple, value) -> None:
+        with self._lock:
+            kept[key] = value
+            kept.move_to_end(key)
+            while len(kept) > self.size:
+                kept.popitem(last=False)
+
+    def clear(self) -> None:
+        """Drop every robot model and world kept."""
+        with self._lock:
+            self._robots.clear()
+            self._worlds.clear()
+
+
+#: This process's kept worlds (each Dask worker process has its own).
+WORLDS = BuiltWorlds()
 
 
 def task_overrides(task: RunTask) -> list[str]:
@@ -99,7 +179,7 @@ def evaluate(task: RunTask) -> Row:
     start = time.perf_counter()
     row = Row(task.index, dict(task.values))
     try:
-        row.metrics, row.trace = _run(task)
+        row.metrics, row.trace = _run(task, row)
     except JointCtlError as exc:
         row.error = describe(exc)
     except Exception as exc:  # noqa: BLE001  (a sweep names every failure in its row and carries on)
@@ -114,17 +194,25 @@ def describe(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}"
 
 
-def _run(task: RunTask) -> tuple[dict[str, float | bool | None], dict[str, Any]]:
+def _run(task: RunTask, row: Row) -> tuple[dict[str, float | bool | None], dict[str, Any]]:
     scenario = task_scenario(task)
+    robot, world, key = WORLDS.take(task, scenario) if task.reuse is not None else (None, None, None)
+    session = None
     with tempfile.TemporaryDirectory(prefix="jointctl-run-") as tmp, not_drawn():
-        out = Path(tmp)
-        with Session(scenario, out_dir=out, package_path=task.package_path) as session:
-            analysis = check_analysis(session)
-            session.run()
+        out = Path(tmp)  # for what an analysis writes besides the trace (the runs of its variants)
+        try:
+            session = Session(scenario, package_path=task.package_path, robot=robot, world=world, keep_trace=True)
+            with session:
+                analysis = check_analysis(session)
+                session.run()
+        finally:
+            if key is not None:
+                WORLDS.keep(key, session.world if session is not None else world)
+        row.loop, row.loop_reason = session.loop.mode, session.loop.mode_reason
         session.manager.raise_failures()
         if session.rejected_goals:
             raise session.rejected_goals[0][1]
-        trace = load_trace(session.trace_path)
+        trace = session.trace()
         metrics: dict[str, Any] = {}
         if analysis is not None:
             metrics = analysis(session, trace, out, session.scenario.analysis)
@@ -165,5 +253,5 @@ def key_trace(session: Session, trace, points: int) -> dict[str, Any] | None:
             "reference": trace.joint(joint, "reference")[::every].copy()}
 
 
-__all__ = ["NOT_ROW_METRICS", "ROBOT_RUN_S", "Row", "RunTask", "build_session", "describe", "evaluate", "key_trace",
-           "numbers", "task_overrides", "task_scenario"]
+__all__ = ["KEPT_WORLDS", "NOT_ROW_METRICS", "ROBOT_RUN_S", "WORLDS", "BuiltWorlds", "Row", "RunTask", "build_session",
+           "describe", "evaluate", "key_trace", "numbers", "task_overrides", "task_scenario"]

@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import time
+import uuid
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
@@ -48,7 +49,7 @@ def run_sweep(target: str, variations: Iterable[str | Variation], *, samples: in
               spec: str | Spec | None = None, scheduler: str | None = None, workers: int | None = None,
               in_process: bool = False, engine: Engine | None = None, out_dir: str | Path | None = None,
               controllers: str | None = None, overrides: Iterable[str] = (), package_path: Iterable[str] = (),
-              nominal: bool = True, check: bool = True, figures: bool = True,
+              nominal: bool = True, check: bool = True, figures: bool = True, reuse: bool = True,
               progress: bool | Callable[[Row], None] = False, say: Callable[[str], None] | None = None) -> SweepResult:
     """Run ``target`` (a scenario or robot, as ``jointctl run`` takes it) once per combination of
     ``variations`` (``"FIELD=VALUES"`` items or :class:`Variation`; see :mod:`jointctl.sweep.variations`), with
@@ -61,14 +62,17 @@ def run_sweep(target: str, variations: Iterable[str | Variation], *, samples: in
     in a line), else a local cluster of one process per core. ``spec``
     (``"overshoot_pct<=10,settling_time_s<=0.3"``) judges each row. ``nominal=False`` skips the nominal run
     (and with it the check of the spec's metric names); ``check=False`` the check of the variations' values against
-    the target (for a caller that sweeps the same variations again and again, e.g. a design loop). With ``out_dir``: ``results.csv``, ``summary.json``,
-    ``traces.npz`` and (``figures``) the PNGs. ``progress``: True for a progress line on stderr
+    the target (for a caller that sweeps the same variations again and again, e.g. a design loop). ``reuse``
+    (the default): each process running the runs keeps the worlds it built for the next runs of this sweep
+    (:data:`~jointctl.sweep.runner.WORLDS`); False: every run builds its own. With ``out_dir``: ``results.csv``,
+    ``summary.json``, ``traces.npz`` and (``figures``) the PNGs. ``progress``: True for a progress line on stderr
     (:class:`~jointctl.sweep.engine.ProgressLine`), or a function called with each row as it arrives.
     """
     found = variations_from(variations)
     count = check_samples(samples, seed, found)
     spec = spec if isinstance(spec, Spec) else parse_spec(spec)
-    base = RunTask(-1, target, {}, seed, controllers, tuple(overrides), tuple(package_path))
+    base = RunTask(-1, target, {}, seed, controllers, tuple(overrides), tuple(package_path),
+                   reuse=uuid.uuid4().hex if reuse else None)
     own = engine is None
     chosen = own and scheduler is None and workers is None and not in_process
     if own:
@@ -80,7 +84,7 @@ def run_sweep(target: str, variations: Iterable[str | Variation], *, samples: in
         nominal_row = evaluate(base)
         if nominal_row.error is None:
             spec.check_metrics(nominal_row.metrics)
-    tasks = [RunTask(k, target, values, seed, controllers, base.overrides, base.package_path)
+    tasks = [RunTask(k, target, values, seed, controllers, base.overrides, base.package_path, reuse=base.reuse)
              for k, values in enumerate(expand(found, count, seed))]
     if chosen and nominal_row is not None and nominal_row.error is None \
             and runs_here(nominal_row.run_s * len(tasks), cores()):

@@ -14,7 +14,6 @@ import numpy as np
 
 from jointctl.control.position_loop import position_loop
 from jointctl.errors import ConfigError
-from jointctl.model.dynamics import RobotDynamics
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import flatten
 from jointctl.recording import figures
@@ -49,7 +48,7 @@ def joint_plant(session: Session, joint: str) -> JointPlant:
     inertia's diagonal entry is the mass (prismatic) or the inertia about the axis (revolute) the joint moves,
     armature included."""
     hardware = session.hardware
-    dynamics = RobotDynamics(session.plant, session.scenario.gravity_m_s2, joints=hardware.joint_names)
+    dynamics = session.dynamics(session.plant, hardware.joint_names)
     dynamics.set_pose(hardware.position)
     k = dynamics.joint_names.index(joint)
     mass = float(dynamics.mass_matrix()[k, k])

@@ -33,8 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from jointctl.control.position_loop import law_of
-from jointctl.metrics.step_loop import JointLoop, StepFigures, holding_effort, step_figures
-from jointctl.model.dynamics import RobotDynamics
+from jointctl.metrics.step_loop import JointLoop, StepFigures, step_figures
 from jointctl.scenario.session import Session
 
 #: A command within this share of the effort limit is at it (a clamped one is the limit, to rounding).
@@ -96,18 +95,18 @@ def joint_loop(session: Session, joint: str, controller, pose: dict) -> JointLoo
     ``pose`` (name -> position [m or rad]); see the module docstring."""
     scenario = session.scenario
     names = list(session.hardware.joint_names)
-    dynamics = RobotDynamics(session.plant, scenario.gravity_m_s2, joints=names)
+    dynamics = session.dynamics(session.plant, names)
     dynamics.set_pose([float(pose.get(name, 0.0)) for name in names])
     k = names.index(joint)
     gains = controller.pid.gains
     feedforward = "gravity" in controller.feedforward_terms
     model_hold = None
     if feedforward and session.plant is not session.robot:
-        model_hold = holding_effort(session.robot, joint, pose, scenario.gravity_m_s2) or (lambda q: 0.0)
+        model_hold = session.holding_effort(session.robot, joint, pose) or (lambda q: 0.0)
     simulated = session.world is not None
     return JointLoop(
         mass=float(dynamics.mass_matrix()[k, k]), damping=float(dynamics.damping[k]), period_s=scenario.loop_period_s,
-        effort_limit=controller.effort_limit, hold=holding_effort(session.plant, joint, pose, scenario.gravity_m_s2),
+        effort_limit=controller.effort_limit, hold=session.holding_effort(session.plant, joint, pose),
         p=gains.p, i=gains.i, d=gains.d, i_clamp=gains.i_clamp_max, i_clamp_min=gains.i_clamp_min,
         antiwindup=gains.antiwindup, law=law_of(controller),
         derivative=controller.derivative, feedforward=feedforward, feedforward_hold=model_hold,

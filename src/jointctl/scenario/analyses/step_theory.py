@@ -189,7 +189,7 @@ def step_theory(session: Session, trace: Trace, joint: str, step_time_s: float,
     figures = _model_figures(theory, model, t, reference, step_time_s, settle_band, ramp_s)
 
     # The linearised loops about the rest: where the loop rests, and how the neighbours' loops move its mode.
-    dynamics = RobotDynamics(session.plant, session.scenario.gravity_m_s2, joints=names)
+    dynamics = session.dynamics(session.plant, names)
     feedforward = "gravity" in controller.feedforward_terms
     model_dynamics = _controllers_model(session, names)
 
@@ -395,7 +395,7 @@ def _controllers_model(session: Session, names) -> RobotDynamics | None:
     differs from it; None when it is the robot simulated."""
     if session.plant is session.robot:
         return None
-    return RobotDynamics(session.robot, session.scenario.gravity_m_s2, joints=names)
+    return session.dynamics(session.robot, names)
 
 
 def _gravity_gradient(dynamics: RobotDynamics, pose: np.ndarray) -> np.ndarray:
