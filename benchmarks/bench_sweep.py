@@ -12,10 +12,12 @@ of one and of two worker processes (started, and their imports done, before the 
 - the cost of one run of the arm's Monte Carlo (arm7dof_pose, joint damping and payload drawn), for the estimate of
   a cluster in docs/sweeps.md;
 - the throughput of a sweep as it runs (each worker keeps the worlds it built for the sweep's next runs, the loop
-  compiled, the trace in memory) against the old way, a run as jointctl 0.x ran it (:func:`old_way`: the session
-  built whole, the YAML files parsed, the Python loop, the trace written to ``trace.csv`` and read back), on the
-  same two workers: the same :data:`OLD_RUNS` runs each way, interleaved, best of :data:`REPEATS`, target >= 3x;
-  and the 1000 runs above against the old way's throughput.
+  compiled, the trace in memory) against the same sweep run by jointctl as it was when the compiled cycle was
+  asked for (:data:`BASELINE_COMMIT`, the commit before the first kernel, taken from this repository's history by
+  ``git archive``): the same :data:`OLD_RUNS` runs on a local cluster of two workers, each way in its own process
+  (its cluster started and warmed before the clock starts), interleaved, best of :data:`REPEATS`, target >= 3x;
+  and the 1000 runs above against that throughput. Without the repository's history (a source tarball) the
+  comparison is not measured.
 
 The 200-run sweeps on one and two workers are interleaved, three of each, and the fastest of each counts.
 
@@ -32,7 +34,10 @@ from pathlib import Path
 
 from benchmarks.common import Result
 
-SRC = Path(__file__).resolve().parents[1] / "src"
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src"
+#: jointctl as it was when the compiled cycle was asked for: the parent of the commit of the first kernel.
+BASELINE_COMMIT = "36a311fb215ac50771839cdd6f93302a5f8f9403"
 
 TARGET = "one_dof_step"
 RUNS = 200
@@ -57,6 +62,19 @@ def _sweep(vary, engine):
     return result
 
 
+#: A sweep timed in its own process (the baseline's code or this one's: the API both have).
+TIMED = """
+import time
+from jointctl.sweep import Engine, run_sweep
+with Engine(workers=2) as engine:
+    run_sweep(TARGET, ["payload_kg=[0, 1, 2, 3]"], engine=engine, nominal=False)  # the workers' imports, first builds
+    start = time.perf_counter()
+    result = run_sweep(TARGET, VARY_OLD, engine=engine, nominal=False)
+    wall = time.perf_counter() - start
+assert not any(row.error for row in result.rows)
+print(wall)
+"""
+
 #: The machine's own parallel efficiency: the same runs in plain processes, no Dask (each prints its wall time).
 PLAIN = """
 import sys, time
@@ -69,61 +87,47 @@ print(time.perf_counter() - start)
 """
 
 
-def old_way(task):
-    """A run as the sweep ran it before worlds were kept (the row's figures; its wall-clock time [s]): the YAML
-    files parsed, the robot's files read and its world compiled, the Python loop, the trace written to
-    ``trace.csv`` in a temporary folder and read back for the analysis."""
+def baseline_source(folder: Path) -> Path | None:
+    """The ``src`` folder of :data:`BASELINE_COMMIT`'s tree, written into ``folder`` (None without git or the
+    commit)."""
+    import io
+    import tarfile
+
+    try:
+        tree = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", BASELINE_COMMIT],
+                              capture_output=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    with tarfile.open(fileobj=io.BytesIO(tree)) as archive:
+        archive.extractall(folder)  # (this repository's own tree)
+    return folder / "src"
+
+
+def timed_sweep(source: Path) -> float:
+    """Wall time [s] of the :data:`OLD_RUNS` runs of :data:`VARY_OLD` on two workers, by the jointctl in
+    ``source`` (its own process and cluster, warmed first)."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(source), os.environ.get("PYTHONPATH")]))}
+    code = TIMED.replace("VARY_OLD", repr(VARY_OLD)).replace("TARGET", repr(TARGET))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=source.parent)
+    if out.returncode != 0:
+        raise RuntimeError(f"the sweep of {source} failed: {out.stderr[-2000:]}")
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def old_and_new() -> tuple[float, float] | None:
+    """Wall times [s] of :data:`OLD_RUNS` runs by the baseline's code and by this code, each the fastest of
+    :data:`REPEATS`, interleaved; None without the baseline's tree."""
     import tempfile
 
-    from jointctl.control import manager
-    from jointctl.recording.figures import not_drawn
-    from jointctl.recording.trace import load_trace
-    from jointctl.scenario.analyses import check_analysis
-    from jointctl.scenario.session import Session
-    from jointctl.sweep.runner import numbers, task_scenario
-
-    start = time.perf_counter()
-    manager._PARSED.clear()  # (read_yaml keeps what it parsed since)
-    scenario = task_scenario(task)
-    with tempfile.TemporaryDirectory(prefix="jointctl-run-") as tmp, not_drawn():
-        with Session(scenario, out_dir=Path(tmp), package_path=task.package_path) as session:
-            analysis = check_analysis(session)
-            session.run()
-        assert session.loop.mode == "python"
-        metrics = numbers(analysis(session, load_trace(session.trace_path), Path(tmp), scenario.analysis))
-    return metrics, time.perf_counter() - start
-
-
-def _tasks(vary, *, reuse: str | None, overrides=()):
-    from jointctl.sweep.runner import RunTask
-    from jointctl.sweep.variations import expand, variations_from
-
-    return [RunTask(k, TARGET, values, overrides=tuple(overrides), reuse=reuse)
-            for k, values in enumerate(expand(variations_from(vary), 1, 0))]
-
-
-def old_and_new(engine) -> tuple[float, float, float, float]:
-    """Wall times [s] of :data:`OLD_RUNS` runs the old way and the new way on ``engine``'s cluster, interleaved,
-    the fastest of :data:`REPEATS` each; and each way's mean run's own time [s]."""
-    import uuid
-
-    from jointctl.sweep.engine import evaluate_on_worker
-
-    client = engine.client
-    old_walls, new_walls, old_own, new_own = [], [], [], []
-    client.gather(client.map(old_way, _tasks(["payload_kg=[0, 1]"], reuse=None, overrides=["loop=python"]),
-                             pure=False))  # the Python loop's imports done on each worker
-    for _ in range(REPEATS):
-        start = time.perf_counter()
-        rows = client.gather(client.map(old_way, _tasks(VARY_OLD, reuse=None, overrides=["loop=python"]), pure=False))
-        old_walls.append(time.perf_counter() - start)
-        old_own.append(sum(own for _, own in rows) / len(rows))
-        start = time.perf_counter()
-        rows = client.gather(client.map(evaluate_on_worker, _tasks(VARY_OLD, reuse=uuid.uuid4().hex), pure=False))
-        new_walls.append(time.perf_counter() - start)
-        assert all(row.error is None and row.loop == "compiled" for row in rows)
-        new_own.append(sum(row.run_s for row in rows) / len(rows))
-    return min(old_walls), min(new_walls), min(old_own), min(new_own)
+    with tempfile.TemporaryDirectory(prefix="jointctl-baseline-") as tmp:
+        old_source = baseline_source(Path(tmp))
+        if old_source is None:
+            return None
+        old_walls, new_walls = [], []
+        for _ in range(REPEATS):
+            old_walls.append(timed_sweep(old_source))
+            new_walls.append(timed_sweep(SRC))
+    return min(old_walls), min(new_walls)
 
 
 def plain_processes(count: int, runs: int) -> float:
@@ -154,9 +158,9 @@ def run() -> list[Result]:
         start = time.perf_counter()
         thousand = _sweep(VARY_1000, two)
         wall_1000 = time.perf_counter() - start
-        wall_old, wall_new, own_old, own_new = old_and_new(two)
     with Engine(in_process=True) as here:
         arm = run_sweep_rows(ARM_TARGET, ARM_VARY, here)
+    walls = old_and_new()
     arm_run = min(r.run_s for r in arm)
     single = min(singles, key=lambda r: r.wall_s)
     double = min(doubles, key=lambda r: r.wall_s)
@@ -166,8 +170,7 @@ def run() -> list[Result]:
     own_2 = sum(r.run_s for r in double.rows) / RUNS  # above own: the two workers share the machine's cores
     per_run_1000 = sum(r.run_s for r in thousand.rows) / len(thousand.rows)
     throughput = len(thousand.rows) / wall_1000  # runs per second, the new way
-    throughput_old = OLD_RUNS / wall_old
-    return [
+    rows = [
         Result("sweep", "one run's own time, in this process (baseline)", per_run_here * 1e3, "ms"),
         Result("sweep", "one run's own time, on 1 worker", own * 1e3, "ms"),
         Result("sweep", "one run's own time, on each of 2 workers", own_2 * 1e3, "ms"),
@@ -181,18 +184,20 @@ def run() -> list[Result]:
         Result("sweep", "1000 runs on 2 workers: wall time per run x workers / run's own time",
                wall_1000 * 2 / len(thousand.rows) / per_run_1000, "x"),
         Result("sweep", f"{ARM_TARGET}: one run's own time (fastest of {len(arm)}, in this process)", arm_run, "s"),
-        Result("sweep", "old way (built whole, Python loop, trace.csv): one run's own time, on each of 2 workers",
-               own_old * 1e3, "ms"),
-        Result("sweep", "new way (worlds kept, compiled loop, trace in memory): the same, on each of 2 workers",
-               own_new * 1e3, "ms"),
-        Result("sweep", f"old way: {OLD_RUNS} runs on 2 workers, throughput (fastest of {REPEATS})", throughput_old,
-               "runs/s"),
-        Result("sweep", f"new way: the same {OLD_RUNS} runs on 2 workers, throughput (fastest of {REPEATS})",
+    ]
+    if walls is None:
+        return rows + [Result("sweep", f"this code / {BASELINE_COMMIT[:8]} (no git history here: not measured)",
+                              float("nan"), "x", ">= 3")]
+    wall_old, wall_new = walls
+    return rows + [
+        Result("sweep", f"{BASELINE_COMMIT[:8]} (before the compiled cycle): {OLD_RUNS} runs on 2 workers, "
+               f"throughput (fastest of {REPEATS})", OLD_RUNS / wall_old, "runs/s"),
+        Result("sweep", f"this code: the same {OLD_RUNS} runs on 2 workers, throughput (fastest of {REPEATS})",
                OLD_RUNS / wall_new, "runs/s"),
-        Result("sweep", f"new way / old way, {OLD_RUNS} runs on 2 workers, throughput", wall_old / wall_new, "x",
-               ">= 3", wall_old / wall_new >= 3),
-        Result("sweep", "new way, 1000 runs on 2 workers (throughput above) / old way's throughput",
-               throughput / throughput_old, "x"),
+        Result("sweep", f"this code / {BASELINE_COMMIT[:8]}, {OLD_RUNS} runs on 2 workers, throughput",
+               wall_old / wall_new, "x", ">= 3", wall_old / wall_new >= 3),
+        Result("sweep", f"1000 runs on 2 workers (throughput above) / {BASELINE_COMMIT[:8]}'s throughput",
+               throughput * wall_old / OLD_RUNS, "x"),
     ]
 
 

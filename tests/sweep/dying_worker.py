@@ -16,3 +16,8 @@ def evaluate_or_die(task):
     if task.index == DYING_INDEX:
         os._exit(9)
     return evaluate_on_worker(task)
+
+
+def evaluate_batch_or_die(tasks):
+    """:func:`evaluate_or_die` of each task in turn (a batch: the worker dies with the whole batch)."""
+    return [evaluate_or_die(task) for task in tasks]

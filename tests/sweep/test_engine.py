@@ -228,3 +228,35 @@ def test_a_run_whose_worker_dies_is_a_row_saying_so_and_the_others_measure(tmp_p
     for row in rows[:DYING_INDEX] + rows[DYING_INDEX + 1:]:
         here = evaluate(tasks[row.index])
         assert row.error is None and row.metrics == here.metrics
+
+
+def test_a_large_sweep_goes_in_batches_in_order_and_a_small_one_a_run_a_task():
+    from jointctl.sweep.runner import RunTask
+
+    tasks = [RunTask(k, "one_dof_step", {}) for k in range(200)]
+    cut = engine_module.batches(tasks, 2)
+    assert [len(b) for b in cut] == [6] * 33 + [2]  # 200 // (2 workers x 16) = 6 runs a batch
+    assert [t.index for b in cut for t in b] == list(range(200))
+    assert [len(b) for b in engine_module.batches(tasks, 1)] == [8] * 25  # at most 8
+    assert [len(b) for b in engine_module.batches(tasks[:40], 2)] == [1] * 40
+
+
+def test_a_batch_lost_with_its_worker_is_run_again_a_run_a_task(tmp_path, monkeypatch):
+    """Run 1 kills its worker with the batch it came in (runs 0 and 1); the batch's runs go again one a task: run
+    0 measures, run 1 kills a worker again and its row says so, the other batches measure."""
+    import dask
+
+    from jointctl.sweep.runner import RunTask, evaluate
+    from tests.sweep.dying_worker import DYING_INDEX, evaluate_batch_or_die, evaluate_or_die
+
+    monkeypatch.setattr(engine_module, "evaluate_on_worker", evaluate_or_die)
+    monkeypatch.setattr(engine_module, "evaluate_batch_on_worker", evaluate_batch_or_die)
+    tasks = [RunTask(k, "one_dof_step", {"payload_kg": 0.1 * k}) for k in range(32)]
+    assert len(engine_module.batches(tasks, 1)[0]) == 2
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0,
+                          "distributed.scheduler.worker-saturation": 1.0}), Engine(workers=1) as engine:
+        rows, interrupted = engine.run(tasks)
+    assert not interrupted and [row.index for row in rows] == list(range(32))
+    assert rows[DYING_INDEX].error.startswith("KilledWorker: ") and rows[DYING_INDEX].metrics == {}
+    assert [row.index for row in rows if row.error] == [DYING_INDEX]
+    assert rows[0].metrics == evaluate(tasks[0]).metrics and rows[31].metrics == evaluate(tasks[31]).metrics

@@ -122,3 +122,24 @@ def source_sample(parameters, state, tables, f, t, j):
         state[f, HELD_K] = k
         state[f, HOLDS] = 1.0
     return state[f, HELD_VALUE]
+
+
+@kernel
+def source_values(parameters, state, times, out):
+    """Source 0's values at ``times`` [s], in order, into ``out`` (its ``sample`` at each)."""
+    tables = parameters[:1, :1]  # (a source with a table samples in Python)
+    for j in range(times.shape[0]):
+        out[j] = source_sample(parameters, state, tables, 0, times[j], 0)
+
+
+def sample_times(source, times) -> np.ndarray:
+    """``source.sample(t)`` at each of ``times`` [s], in order (compiled for a constant, step, sine or chirp; the
+    source's state afterwards as ``sample`` leaves it)."""
+    times = np.ascontiguousarray(times, dtype=float)
+    if type(source) not in (ConstantSource, StepSource, SineSource, ChirpSource):
+        return np.array([float(source.sample(float(t))) for t in times])
+    parameters, state = (np.array([row]) for row in pack_source(source))
+    out = np.empty(times.size)
+    source_values(parameters, state, times, out)
+    unpack_source(source, state[0])
+    return out

@@ -67,7 +67,7 @@ from jointctl.identification.gain_files import fields_of, setting_overrides, tun
 from jointctl.identification.step_design import (INTEGRAL_TIMES, OVERSHOOT_TOLERANCE_PCT, SETTLING_TOLERANCE,
                                                  StepDesign, binding, lowest_settling, ramp_for_kick, remedy_lacking,
                                                  solve_step, with_integral)
-from jointctl.identification.step_loop import JointLoop, holding_effort, reference_step, step_figures
+from jointctl.identification.step_loop import HoldingEffort, JointLoop, holding_effort, reference_step, step_figures
 from jointctl.identification.safety import (DEFAULT, GUARD_FRACTION, Guard, Safety, SaturationMonitor, envelope_for,
                                             run_guarded, saturation_text)
 from jointctl.recording.metrics_file import write_metrics
@@ -490,7 +490,7 @@ def _hold_profile(plant: dict | None, robot, joint: str, pose: dict, gravity_m_s
     the robot model's over the joint's range (:func:`~jointctl.identification.step_loop.holding_effort`)."""
     if plant is not None:
         load = float(plant.get("gravity_load_n", 0.0))
-        return (lambda q: load) if load else None
+        return HoldingEffort.constant(load) if load else None
     return holding_effort(robot, joint, pose, gravity_m_s2)
 
 

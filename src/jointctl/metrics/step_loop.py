@@ -163,7 +163,8 @@ class JointLoop:
         return (held[0, 0], held[0, 1], held[1, 0], held[1, 1], held[0, 2], held[1, 2])
 
     def run(self, reference: np.ndarray, *, until_peak: bool = False, start: tuple[float, float] | None = None,
-            reference_rate: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            reference_rate: np.ndarray | None = None,
+            compiled: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(position, velocity, commanded effort) at each cycle of ``reference`` (one value a period [m or
         rad]), from rest holding ``reference[0]`` (:meth:`rest`), or from ``start`` (position [m or rad], speed
         [m/s or rad/s]) with the controller just started (integral 0, the commands on their way 0: as a session
@@ -172,7 +173,9 @@ class JointLoop:
         whatever the ``derivative`` law (a reference that carries its velocity). Positions are those measured
         at the start of each cycle, before its command; the effort is what reaches the joint (the command within
         the effort limit). ``until_peak``: stop at the first cycle, once the reference has come to its last
-        value, whose velocity no longer moves the joint the way of the move (its first peak)."""
+        value, whose velocity no longer moves the joint the way of the move (its first peak). ``compiled``: the
+        cycles run by the compiled loop (:mod:`~jointctl.metrics.step_loop_kernel`: the same operations) where it
+        has a form (the loads :class:`HoldingEffort` tables or none), else in Python (False: always)."""
         # Python floats and lists in the loop: the same IEEE arithmetic as numpy's scalars, at a third of the cost.
         a00, a01, a10, a11, b0, b1 = (float(x) for x in self._plant())
         h, p, i, d = float(self.period_s), float(self.p), float(self.i), float(self.d)
@@ -195,16 +198,22 @@ class JointLoop:
         else:
             q, v = float(start[0]), float(start[1])
             i_state = held = 0.0
-        pending = deque([held] * self.delay_cycles) if self.delay_cycles else None
         # The last error a fresh PID differentiates from: ros_control's first rate is 0, control_toolbox's e₀/h.
         e_last = 0.0 if start is not None and self.law == "control_toolbox" else float(r[0]) - q
         n = r_array.size
-        qs, vs, us = [], [], []
-        direction = 1.0 if r[-1] >= r[0] else -1.0
         arrived = n
         if until_peak:
             away = np.nonzero(r_array != r_array[-1])[0]
             arrived = int(away[-1]) + 1 if away.size else 0
+        ran = None if not compiled or n == 0 else _compiled_run(
+            self, (a00, a01, a10, a11, b0, b1), (h, p, i, d, limit, low, clamp),
+            (antiwindup, on_error, rates is not None, feedforward, own_model, until_peak), r_array, reference_rate,
+            (q, v, i_state, e_last), held, arrived)
+        if ran is not None:
+            return ran
+        pending = deque([held] * self.delay_cycles) if self.delay_cycles else None
+        qs, vs, us = [], [], []
+        direction = 1.0 if r[-1] >= r[0] else -1.0
         for k in range(n):
             if k > arrived and v * direction <= 0.0:
                 break
@@ -243,8 +252,39 @@ class JointLoop:
         return step_figures(np.arange(q.size) * self.period_s, q, reference, u, self.effort_limit)
 
 
+def _table(hold) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The arrays of a :class:`HoldingEffort` for the compiled loop (None: another kind of load)."""
+    if type(hold) is not HoldingEffort:
+        return None
+    return np.array([hold.left, hold.spacing]), hold.values, hold.slopes
+
+
+def _compiled_run(loop: JointLoop, plant, gains, flags, reference: np.ndarray, rates, start, held: float,
+                  arrived: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """:meth:`JointLoop.run`'s cycles by :func:`~jointctl.metrics.step_loop_kernel.loop_run` (the same
+    operations), or None where it has no compiled form (a load that is not a table, numba missing)."""
+    none = (np.zeros(2), np.zeros(2), np.zeros(1))
+    hold = none if loop.hold is None else _table(loop.hold)
+    model = none if loop.feedforward_hold is None else _table(loop.feedforward_hold)
+    if hold is None or model is None:
+        return None
+    try:
+        from jointctl.metrics.step_loop_kernel import loop_run
+    except ImportError:
+        return None
+    antiwindup, on_error, has_rates, feedforward, own_model, until_peak = flags
+    n = reference.size
+    qs, vs, us = np.empty(n), np.empty(n), np.empty(n)
+    count = loop_run(np.array(plant), np.array(gains), np.array(
+        [antiwindup, on_error, has_rates, feedforward, own_model, loop.hold is not None, until_peak], dtype=float),
+        np.ascontiguousarray(reference, dtype=float),
+        np.zeros(1) if rates is None else np.ascontiguousarray(rates, dtype=float), *hold, *model,
+        np.array(start, dtype=float), np.full(loop.delay_cycles, held), arrived, qs, vs, us)
+    return qs[:count], vs[:count], us[:count]
+
+
 def holding_effort(robot, joint: str, pose: dict, gravity_m_s2=(0.0, 0.0, -9.81),
-                   samples: int = 721, *, memo: dict | None = None) -> Callable[[float], float] | None:
+                   samples: int = 721, *, memo: dict | None = None) -> HoldingEffort | None:
     """``τ_hold(q)`` [N or N·m] of ``joint`` of ``robot`` with the other joints at ``pose`` (name -> position),
     read off the robot model at ``samples`` positions over the joint's range (a turn for a continuous joint,
     ±1 m for a prismatic one without limits) and interpolated; None when it is 0 everywhere. ``memo``: a dict
@@ -271,7 +311,40 @@ def holding_effort(robot, joint: str, pose: dict, gravity_m_s2=(0.0, 0.0, -9.81)
     return hold
 
 
-def _holding_effort(dynamics, k: int, q: np.ndarray, grid: np.ndarray) -> Callable[[float], float] | None:
+@dataclass(frozen=True, eq=False)
+class HoldingEffort:
+    """``τ_hold(q)`` [N or N·m] read off an even grid of positions [m or rad] from ``left`` every ``spacing``:
+    linear inside a cell, straight on beyond the grid. ``values`` the efforts at the grid's positions, ``slopes``
+    each cell's [N/m or N·m/rad] (numpy arrays, also read by the compiled loop of :mod:`step_loop_kernel`)."""
+
+    left: float
+    spacing: float
+    values: np.ndarray
+    slopes: np.ndarray
+
+    @classmethod
+    def zero(cls) -> HoldingEffort:
+        """No load anywhere (0.0 at every position)."""
+        return cls.constant(0.0)
+
+    @classmethod
+    def constant(cls, effort: float) -> HoldingEffort:
+        """The same ``effort`` [N or N·m] at every position (an identified plant's gravity load)."""
+        return cls(0.0, 1.0, np.full(2, float(effort)), np.zeros(1))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_values", self.values.tolist())
+        object.__setattr__(self, "_slopes", self.slopes.tolist())
+
+    def __call__(self, position: float) -> float:
+        # The grid is even: the cell by division, linear inside it, straight on beyond the range.
+        left, spacing, last = self.left, self.spacing, len(self._slopes) - 1
+        cell = int((position - left) // spacing)
+        cell = 0 if cell < 0 else last if cell > last else cell
+        return self._values[cell] + self._slopes[cell] * (position - left - cell * spacing)
+
+
+def _holding_effort(dynamics, k: int, q: np.ndarray, grid: np.ndarray) -> HoldingEffort | None:
     samples = grid.size
     efforts = np.empty(samples)
     for n, value in enumerate(grid):
@@ -282,17 +355,7 @@ def _holding_effort(dynamics, k: int, q: np.ndarray, grid: np.ndarray) -> Callab
         return None
     left, right = float(grid[0]), float(grid[-1])
     spacing = (right - left) / (samples - 1)
-    values = efforts.tolist()
-    slopes = (np.diff(efforts) / spacing).tolist()
-    last = samples - 2
-
-    def hold(position: float) -> float:
-        # The grid is even: the cell by division, linear inside it, straight on beyond the range.
-        cell = int((position - left) // spacing)
-        cell = 0 if cell < 0 else last if cell > last else cell
-        return values[cell] + slopes[cell] * (position - left - cell * spacing)
-
-    return hold
+    return HoldingEffort(left, spacing, efforts.copy(), np.diff(efforts) / spacing)
 
 
 def reference_step(start: float, step: float, *, hold_s: float = 0.0, ramp_s: float = 0.0, after_s: float = 3.0,

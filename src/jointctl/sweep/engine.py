@@ -53,6 +53,24 @@ def evaluate_on_worker(task: RunTask) -> Row:
     return row
 
 
+def evaluate_batch_on_worker(tasks: Sequence[RunTask]) -> list[Row]:
+    """:func:`evaluate_on_worker` of each task in turn (one cluster task carrying several runs)."""
+    return [evaluate_on_worker(task) for task in tasks]
+
+
+#: The most runs one cluster task carries: a run on a kept world takes tens of milliseconds, and each task costs
+#: the scheduler and the client about a millisecond of the cores the workers share on a small machine.
+BATCH_RUNS = 8
+#: Batches only when every worker gets at least this many of them (the load stays balanced to the end).
+BATCHES_PER_WORKER = 16
+
+
+def batches(tasks: Sequence[RunTask], workers: int) -> list[list[RunTask]]:
+    """``tasks`` in order, cut into batches of up to :data:`BATCH_RUNS` (single runs for a small sweep)."""
+    size = max(1, min(BATCH_RUNS, len(tasks) // (max(1, workers) * BATCHES_PER_WORKER)))
+    return [list(tasks[k:k + size]) for k in range(0, len(tasks), size)]
+
+
 def cores() -> int:
     """The cores this process may run on (its CPU affinity, else the machine's count)."""
     try:
@@ -187,21 +205,43 @@ class Engine:
         return [done[i] for i in sorted(done)], interrupted
 
     def _run_on_cluster(self, tasks: Sequence[RunTask], finished: Callable[[Row], None]) -> None:
+        """The tasks in batches (:func:`batches`); a batch lost with its worker is run again a run a task, so that
+        only the run that was lost with a worker says so."""
         from distributed import as_completed
 
         token = uuid.uuid4().hex[:8]
-        keys = [f"jointctl-run-{token}-{task.index}" for task in tasks]
-        by_key = dict(zip(keys, tasks))
-        futures = self.client.map(evaluate_on_worker, tasks, key=keys, pure=False)
+        work = {}  # future key -> its tasks
+        futures = []
+        for k, batch in enumerate(batches(tasks, self.worker_count)):
+            if len(batch) == 1:
+                key = f"jointctl-run-{token}-{batch[0].index}"
+                future = self.client.submit(evaluate_on_worker, batch[0], key=key, pure=False)
+            else:
+                key = f"jointctl-runs-{token}-{k}"
+                future = self.client.submit(evaluate_batch_on_worker, batch, key=key, pure=False)
+            work[key] = batch
+            futures.append(future)
+        running = as_completed(futures)
         try:
-            for future in as_completed(futures):
+            for future in running:
+                batch = work[future.key]
                 try:
-                    row = future.result()
+                    result = future.result()
+                    rows = result if isinstance(result, list) else [result]
                 except Exception as exc:  # noqa: BLE001  (a worker died with the task, or it was lost)
-                    task = by_key[future.key]
-                    row = Row(task.index, dict(task.values), error=describe(exc))
+                    if len(batch) > 1:
+                        for task in batch:  # again, a run a task: only the one that kills its worker fails
+                            key = f"jointctl-run-{token}-{task.index}"
+                            work[key] = [task]
+                            retry = self.client.submit(evaluate_on_worker, task, key=key, pure=False)
+                            futures.append(retry)
+                            running.add(retry)
+                        future.release()
+                        continue
+                    rows = [Row(batch[0].index, dict(batch[0].values), error=describe(exc))]
                 future.release()
-                finished(row)
+                for row in rows:
+                    finished(row)
         except KeyboardInterrupt:
             self.client.cancel([f for f in futures if not f.done()])
             raise

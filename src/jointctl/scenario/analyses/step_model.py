@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from jointctl.control.position_loop import law_of
-from jointctl.metrics.step_loop import JointLoop, StepFigures, step_figures
+from jointctl.metrics.step_loop import HoldingEffort, JointLoop, StepFigures, step_figures
 from jointctl.scenario.session import Session
 
 #: A command within this share of the effort limit is at it (a clamped one is the limit, to rounding).
@@ -102,7 +102,7 @@ def joint_loop(session: Session, joint: str, controller, pose: dict) -> JointLoo
     feedforward = "gravity" in controller.feedforward_terms
     model_hold = None
     if feedforward and session.plant is not session.robot:
-        model_hold = session.holding_effort(session.robot, joint, pose) or (lambda q: 0.0)
+        model_hold = session.holding_effort(session.robot, joint, pose) or HoldingEffort.zero()
     simulated = session.world is not None
     return JointLoop(
         mass=float(dynamics.mass_matrix()[k, k]), damping=float(dynamics.damping[k]), period_s=scenario.loop_period_s,
@@ -123,7 +123,12 @@ def step_model(session: Session, trace, joint: str, controller, pose: dict) -> S
     cycles = int(round(float(trace.time_s[-1]) / h)) + 1
     time_s = np.arange(cycles) * h
     source = session.sources[controller.name]
-    reference = np.array([float(source.sample(float(t))) for t in time_s])
+    try:
+        from jointctl.commands.sources_kernel import sample_times
+    except ImportError:  # (numba missing: the source's own sample)
+        reference = np.array([float(source.sample(float(t))) for t in time_s])
+    else:
+        reference = sample_times(source, time_s)
     start = _start(session, trace, joint)
     position, _, effort = loop.run(reference, start=start)
     return StepModel(loop, start, time_s, reference, position, effort)
