@@ -26,5 +26,10 @@ fi
 # (~/.cache/jointctl/kernels/, see src/jointctl/jit.py), so that the first run does not wait.
 "$VENV/bin/python" -c 'from jointctl.scenario.session import Session; from jointctl.scenario.spec import load_scenario
 s = Session(load_scenario("one_dof_step")); s.run(0.001)
+from jointctl.metrics.step_loop import HoldingEffort, JointLoop
+JointLoop(1.0, 1.0, 0.001, hold=HoldingEffort.zero(), p=1.0).run([0.0, 1.0])  # the step analysis'"'"'s model
+from jointctl.commands.sources import StepSource
+from jointctl.commands.sources_kernel import sample_times
+sample_times(StepSource(0.0, 1.0, 0.5), [0.0, 1.0])
 print("bootstrap: loop:", s.loop.mode, s.loop.mode_reason or "")'
 echo "bootstrap: ready ($("$VENV/bin/python" -c 'import mujoco, numpy; print("mujoco", mujoco.__version__, "numpy", numpy.__version__)'))"
