@@ -168,3 +168,12 @@ def test_a_command_source_into_a_chained_velocity_controller_keeps_the_python_lo
 
     assert python_reason(session.loop) == ("the command source feeds 'joint1_velocity_controller', which takes no "
                                            "command source")
+
+
+def test_every_built_in_scenario_runs_compiled():
+    from jointctl.paths import scenarios_dir
+
+    names = sorted(p.stem for p in scenarios_dir().glob("*.yaml"))
+    assert len(names) >= 10
+    for name in names:
+        assert mode_of(Session(load_scenario(name))) == ("compiled", None), name
