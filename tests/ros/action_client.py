@@ -9,6 +9,7 @@ Prints one JSON line: the final state name, the result fields and the text.
 
 import json
 import sys
+import time
 
 import actionlib
 import rospy
@@ -33,6 +34,9 @@ def main() -> None:
     if not client.wait_for_server(rospy.Duration(20)):
         print(json.dumps({"state": "NO_SERVER"}))
         return
+    deadline = time.monotonic() + 20  # the server connected to the result subscription too (a goal refused at
+    while client.action_client.result_sub.get_num_connections() == 0 and time.monotonic() < deadline:  # once)
+        time.sleep(0.01)
     goal = Goal()
     goal.trajectory = JointTrajectory(joint_names=spec["joint_names"])
     for t, q in spec["points"]:

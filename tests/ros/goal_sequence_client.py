@@ -45,6 +45,11 @@ def main() -> None:
         if not client.wait_for_server(rospy.Duration(30)):
             print(json.dumps({"error": "NO_SERVER"}))
             return
+        # wait_for_server does not wait for the server to connect to this client's result subscription: a goal
+        # rejected at once would have its result published before it, lost, and the client wait for it in vain.
+        deadline = time.monotonic() + 30
+        while client.action_client.result_sub.get_num_connections() == 0 and time.monotonic() < deadline:
+            time.sleep(0.01)
     ended = [None] * len(specs)
     feedback = [0] * len(specs)
     start = time.monotonic()
