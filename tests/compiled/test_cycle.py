@@ -322,6 +322,18 @@ def test_the_cartesian_admittance_gives_the_same_run_on_both_paths(overrides, tm
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("overrides", [[], [f"{ARM_NAC}.wrist_joints=[]"]], ids=["chapter wrist", "no wrist"])
+def test_the_cartesian_admittance_with_the_models_inertia_gives_the_same_run_on_both_paths(overrides, tmp_path):
+    """use_model_inertia: M(q) from mj_fullM every cycle, Tᵀ·M·T with the wrist, the Cholesky solve: the kernel
+    repeats the Python's float operations."""
+    python, compiled = both_paths("arm7dof_nac_catch", tmp_path,
+                                  ["duration_s=1.0", f"{ARM_NAC}.use_model_inertia=true", *overrides])
+    assert_same(python, compiled)
+    nac = compiled.session.manager.controller("arm7dof_nac_controller")
+    assert nac.use_model_inertia and np.abs(nac.velocity_command).max() > 1e-3  # the admittance moves the arm
+
+
+@pytest.mark.slow
 def test_the_arm_catches_the_weight_alike_on_both_paths(tmp_path):
     """arm7dof_nac_catch up to 2 s after the drop at 10 s (the weight lands at 11.1 s)."""
     python, compiled = both_paths("arm7dof_nac_catch", tmp_path, ["duration_s=12.0"])
