@@ -20,7 +20,8 @@ import numpy as np
 
 from jointctl.jit import kernel
 from jointctl.model.dynamics import RobotDynamics
-from jointctl.model.mujoco_functions_kernel import mj_comPos, mj_crb, mj_jacBody, mj_fullM, mj_kinematics, mj_mulM, mj_rne
+from jointctl.model.mujoco_functions_kernel import (mj_comPos, mj_crb, mj_fullM, mj_jacBody, mj_kinematics, mj_mulM,
+                                                    mj_rne)
 
 #: ``DynamicsArrays.addresses``: the model's and the data's address.
 MODEL, DATA = range(2)
