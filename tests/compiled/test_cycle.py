@@ -322,6 +322,18 @@ def test_the_cartesian_admittance_gives_the_same_run_on_both_paths(overrides, tm
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("overrides", [[], [f"{ARM_NAC}.wrist_joints=[]"]], ids=["chapter wrist", "no wrist"])
+def test_the_cartesian_admittance_with_the_models_inertia_gives_the_same_run_on_both_paths(overrides, tmp_path):
+    """use_model_inertia: M(q) from mj_fullM every cycle, Tᵀ·M·T with the wrist, the Cholesky solve: the kernel
+    repeats the Python's float operations."""
+    python, compiled = both_paths("arm7dof_nac_catch", tmp_path,
+                                  ["duration_s=1.0", f"{ARM_NAC}.use_model_inertia=true", *overrides])
+    assert_same(python, compiled)
+    nac = compiled.session.manager.controller("arm7dof_nac_controller")
+    assert nac.use_model_inertia and np.abs(nac.velocity_command).max() > 1e-3  # the admittance moves the arm
+
+
+@pytest.mark.slow
 def test_the_arm_catches_the_weight_alike_on_both_paths(tmp_path):
     """arm7dof_nac_catch up to 2 s after the drop at 10 s (the weight lands at 11.1 s)."""
     python, compiled = both_paths("arm7dof_nac_catch", tmp_path, ["duration_s=12.0"])
@@ -359,6 +371,30 @@ def test_a_non_finite_command_fails_its_controller_at_the_same_cycle_and_the_run
     failure, = compiled.session.manager.failures
     assert failure.time_s == pytest.approx(0.001) and "non-finite command nan" in failure.reason
     assert compiled.session.loop.cycle == 50
+
+
+@pytest.mark.parametrize("overrides", [[], [f"{ARM_NAC}.wrist_joints=[]"]], ids=["chapter wrist", "no wrist"])
+def test_a_model_inertia_not_positive_definite_fails_the_cartesian_chain_at_the_same_cycle(overrides, tmp_path):
+    """A negative armature on the controller's own model (not the simulated one) makes M(q) indefinite: the Python
+    update raises LinAlgError at the first cycle after the tare window (0.2 s) and the manager fails the chain; the
+    kernel writes NaN references, so the velocity controllers' commands are not finite at that cycle and the loop
+    fails the same chain there. Same cycle, same controllers stopped, same safe actions and physics; the failure is
+    recorded as the velocity controller's non-finite command (its reference then reads NaN, not the last one)."""
+    def spoil(session):
+        session.manager.controller("arm7dof_nac_controller").dynamics._model.dof_armature[:] = -100.0
+
+    python, compiled = both_paths("arm7dof_nac_catch", tmp_path,
+                                  ["duration_s=0.3", f"{ARM_NAC}.use_model_inertia=true", *overrides], before=spoil)
+    (p,), (c,) = python.session.manager.failures, compiled.session.manager.failures
+    assert (p.controller, p.time_s) == ("arm7dof_nac_controller", 0.2) and "LinAlgError" in p.reason
+    assert (c.controller, c.time_s) == ("joint0_velocity_controller", 0.2) and "non-finite command nan" in c.reason
+    assert p.chain == c.chain and len(p.chain) == 8 and p.joints == c.joints
+    assert [x.name for x in python.session.manager.active] == [x.name for x in compiled.session.manager.active]
+    assert python.session.loop.cycle == compiled.session.loop.cycle == 300
+    for name, a in python.trace.columns.items():
+        if not name.endswith(".reference"):
+            np.testing.assert_array_equal(a, compiled.trace[name], err_msg=name)
+    np.testing.assert_array_equal(python.session.world.data.qpos, compiled.session.world.data.qpos)
 
 
 def test_a_physics_warning_ends_the_run_at_the_same_cycle(write_scenario, tmp_path):

@@ -77,13 +77,11 @@ def test_a_velocity_controller_chained_to_an_admittance_controller_runs_compiled
     assert controller_reason(velocity, [admittance]) is None
 
 
-def test_the_cartesian_admittance_runs_compiled_unless_it_uses_the_model_inertia():
+def test_the_cartesian_admittance_runs_compiled_with_either_inertia():
     session = Session(load_scenario("arm7dof_nac_catch"))
     assert mode_of(session) == ("compiled", None)
     session = Session(load_scenario("arm7dof_nac_catch", ["controllers.arm7dof_nac_controller.use_model_inertia=true"]))
-    assert mode_of(session) == ("python", "controller 'arm7dof_nac_controller' (CartesianAdmittanceController): "
-                                          "use_model_inertia (a Cholesky solve of M(q) every cycle) has no compiled "
-                                          "form")
+    assert mode_of(session) == ("compiled", None)
 
 
 def test_edges_keep_the_python_loop(write_scenario):

@@ -19,7 +19,7 @@ import pytest
 import yaml
 
 from jointctl.control import CartesianAdmittanceController, ControllerManager, JointVelocityController
-from jointctl.control.cartesian_admittance_controller import rotation_vector
+from jointctl.control.cartesian_admittance_controller import _cholesky_solve, rotation_vector
 from jointctl.control.registry import controller_types
 from jointctl.errors import ConfigError, ControllerError
 from jointctl.hardware.interface import EFFORT
@@ -591,3 +591,32 @@ def test_nothing_else_may_command_its_velocity_controllers(make_manager, write_y
     with pytest.raises(ControllerError) as info:
         manager.start(["second_nac"])
     assert "already claimed" in str(info.value)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 7])
+def test_the_cholesky_solve_is_numpys_solve_within_the_conditioning_bound(n) -> None:
+    """Cholesky is backward stable: the computed x solves (A + ΔA)·x = b with |ΔA| <= γ_{3n+1}·|Lᵀ|·|L|
+    (Higham, Accuracy and Stability of Numerical Algorithms, theorem 10.4), so its error relative to ‖x‖ is at
+    most about n·(3n + 1)·ε·κ(A); the matrices range from well to badly conditioned."""
+    rng = np.random.default_rng(n)
+    eps = np.finfo(float).eps
+    for decades in (0, 4, 8):
+        q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        a = q @ np.diag(np.logspace(0, -decades, n)) @ q.T
+        a = (a + a.T) / 2
+        b = rng.standard_normal(n)
+        exact = np.linalg.solve(a, b)
+        x = np.array(_cholesky_solve(a.tolist(), b.tolist()))
+        bound = n * (3 * n + 1) * eps * np.linalg.cond(a)
+        assert np.linalg.norm(x - exact) <= bound * np.linalg.norm(exact)
+
+
+@pytest.mark.parametrize("matrix", [
+    [[1.0, 2.0], [2.0, 1.0]],                     # indefinite (eigenvalues 3 and -1)
+    [[1.0, 1.0], [1.0, 1.0]],                     # singular
+    [[-1.0, 0.0], [0.0, 1.0]],                    # a negative first pivot
+    [[1.0, 0.0], [0.0, math.nan]],                # not a number
+], ids=["indefinite", "singular", "negative", "nan"])
+def test_the_cholesky_solve_refuses_a_matrix_that_is_not_positive_definite(matrix) -> None:
+    with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
+        _cholesky_solve(matrix, [1.0, 1.0])

@@ -14,7 +14,8 @@ from jointctl.paths import robots_dir
 pytest.importorskip("numba")
 
 from jointctl.model.dynamics_kernel import (  # noqa: E402
-    DynamicsArrays, dynamics_gravity, dynamics_inertia, dynamics_jacobians, dynamics_set_pose)
+    DynamicsArrays, dynamics_gravity, dynamics_inertia, dynamics_jacobians, dynamics_mass_matrix,
+    dynamics_set_pose)
 
 ARM_XACRO = robots_dir() / "arm7dof" / "urdf" / "arm7dof.xacro"
 POSES = [np.array([0.0, 1.0, 0.0, -2.0, 0.0, 1.0, 0.0]) + np.random.default_rng(seed).uniform(-0.5, 0.5, 7)
@@ -50,6 +51,10 @@ def test_the_compiled_queries_answer_as_the_python_ones(arm, joints):
         dynamics_inertia(arrays.addresses, arrays.tau, arrays.qdd, arrays.dof_adr, qdd, inertia)
         assert np.array_equal(inertia, python.inertia_at_pose(qdd))
         assert np.allclose(inertia, python.mass_matrix() @ qdd, rtol=1e-12, atol=1e-12)
+        nv = arrays.jacp.shape[1]
+        table = np.full((3 + -(-nv * nv // 9) + n, 9), np.nan)  # rows of 9: M's nv x nv from row 3, then M(q)
+        dynamics_mass_matrix(arrays.addresses, nv, arrays.dof_adr, table, 3, table, table.shape[0] - n)
+        assert np.array_equal(table[-n:, :n], python.mass_matrix())
 
 
 def test_a_pose_without_the_inertia_leaves_it_as_it_was(arm):

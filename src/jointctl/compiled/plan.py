@@ -10,11 +10,11 @@ stays in Python (the first part without one). Parts with a compiled form:
   chained except to the executor), ``JointVelocityController`` (with its command watchdog, or chained to an
   admittance controller updated before it), ``JointStateController`` (without subscribers), the natural admittance
   controllers :class:`~jointctl.control.admittance_controller.AdmittanceController` and
-  :class:`~jointctl.control.cartesian_admittance_controller.CartesianAdmittanceController` (one, with H diagonal:
-  not ``use_model_inertia``), one :class:`~jointctl.trajectory.executor.TrajectoryExecutor` in front of position
-  controllers (its cycle between events: the plan sampled, references written, the goal supervised; a cycle with
-  an event of the executor's runs in Python, and a goal's end decided in a stretch is made in Python after its
-  cycle);
+  :class:`~jointctl.control.cartesian_admittance_controller.CartesianAdmittanceController` (one, with H diagonal
+  or the model's M(q), ``use_model_inertia``), one :class:`~jointctl.trajectory.executor.TrajectoryExecutor` in
+  front of position controllers (its cycle between events: the plan sampled, references written, the goal
+  supervised; a cycle with an event of the executor's runs in Python, and a goal's end decided in a stretch is made
+  in Python after its cycle);
 - inputs: a :class:`~jointctl.commands.sources.SourceFeed` of a constant, step, sine, chirp or expression source
   into one of those (an expression evaluated in Python a stretch ahead, a message at a time);
   the scenario's :class:`~jointctl.runtime.spawner.ObjectSpawner` (run in Python at its cycles, between stretches);

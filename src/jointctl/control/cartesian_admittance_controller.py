@@ -66,7 +66,8 @@ Cost. The update runs every cycle, so it allocates no arrays and inverts nothing
 H's inverse is kept from the last change of gains, and with H diagonal the wrist's constrained
 dynamics are solved in the three dimensions of the flange's rotation (``_wrist_accelerations``:
 the same q̈_A as ``(Tᵀ·H·T)⁻¹·Tᵀ·(τ - c·q̇)``, to rounding). ``M(q)`` changes every cycle, so with
-``use_model_inertia`` it is factorised (Cholesky) every cycle.
+``use_model_inertia`` it is factorised (Cholesky, ``_cholesky_solve``: on floats, n x n for n joints, or
+``Tᵀ·M·T`` of the arm joints with wrist joints) every cycle.
 """
 
 from __future__ import annotations
@@ -76,7 +77,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.linalg.lapack import dposv
 
 from jointctl.control.controller import Controller
 from jointctl.control.joint_controllers import JointVelocityController
@@ -265,7 +265,7 @@ class CartesianAdmittanceController(Controller):
 
     def _allocate(self) -> None:
         """The cycle's work buffers and constants (with H diagonal, update() allocates no arrays)."""
-        n, n_arm = len(self.joint_names), len(self.arm_joints)
+        n = len(self.joint_names)
         self._qd = np.zeros(n)
         self.velocity = np.zeros(3)          # flange velocity Jv·q̇, base frame [m/s]
         self.torque = np.zeros(n)            # Jvᵀ·f [N·m]
@@ -277,8 +277,6 @@ class CartesianAdmittanceController(Controller):
         self._wrist_limits = [(-limit[k], limit[k]) for k in self.wrist_joints]
         if self.use_model_inertia:
             self._mass = np.zeros((n, n))
-            self._t = np.zeros((n, n_arm))  # T = [I; -P]
-            self._t[list(self.arm_joints), range(n_arm)] = 1.0
         self._cache_gains()
 
     def _cache_gains(self) -> None:
@@ -469,19 +467,42 @@ class CartesianAdmittanceController(Controller):
                 for uj, j, (x, y, z) in zip(u, self.arm_joints, (jr[j] for j in self.arm_joints))]
 
     def _model_accelerations(self, generalized: np.ndarray) -> list[float]:
-        """q̈_A with H = M(q), the model's inertia: ``(Tᵀ·M·T)·q̈_A = Tᵀ·g``, T = [I; -P]."""
-        mass = self.dynamics.mass_matrix(self._mass)
+        """q̈_A with H = M(q), the model's inertia: ``(Tᵀ·M·T)·q̈_A = Tᵀ·g``, T = [I; -P], P = Jr_W⁺·Jr_A
+        (the Cholesky solve on floats, in the order the compiled kernel repeats)."""
+        mass = self.dynamics.mass_matrix(self._mass).tolist()
+        g = generalized.tolist()
         if not self.wrist_joints:
-            return _solve_spd(mass, generalized).tolist()
-        jr = self.jr
-        self.jr_columns = jr.T.tolist()
-        arm, wrist = list(self.arm_joints), list(self.wrist_joints)
-        jr_w = jr[:, wrist]
-        dls = np.linalg.solve(jr_w @ jr_w.T + WRIST_DLS_DAMPING**2 * np.eye(3), jr_w).T  # Jr_W⁺
-        self._dls_rows = dls.tolist()
-        t = self._t
-        t[wrist] = -dls @ jr[:, arm]  # -P
-        return _solve_spd(t.T @ mass @ t, t.T @ generalized).tolist()
+            return _cholesky_solve(mass, g)
+        jr = self.jr_columns = self.jr.T.tolist()  # per joint: its column of Jr
+        g00 = g01 = g02 = g11 = g12 = g22 = 0.0  # Jr_W·Jr_Wᵀ
+        for j in self.wrist_joints:
+            x, y, z = jr[j]
+            g00 += x * x; g01 += x * y; g02 += x * z; g11 += y * y; g12 += y * z; g22 += z * z  # noqa: E702
+        lam2 = WRIST_DLS_DAMPING**2
+        gi = _symmetric_inverse(g00 + lam2, g01, g02, g11 + lam2, g12, g22 + lam2)
+        self._dls_rows = rows = [_symmetric_times(gi, *jr[j]) for j in self.wrist_joints]  # Jr_W⁺, row by row
+        arm, wrist = self.arm_joints, self.wrist_joints
+        p = [[x * jr[a][0] + y * jr[a][1] + z * jr[a][2] for a in arm] for x, y, z in rows]  # P = Jr_W⁺·Jr_A
+        mt = []  # M·T, row by row
+        for row in mass:
+            out = []
+            for b, a in enumerate(arm):
+                value = row[a]
+                for w, j in enumerate(wrist):
+                    value -= row[j] * p[w][b]
+                out.append(value)
+            mt.append(out)
+        system, rhs = [], []  # Tᵀ·M·T, Tᵀ·g
+        for b, a in enumerate(arm):
+            row, value = list(mt[a]), g[a]
+            for w, j in enumerate(wrist):
+                pw, mj = p[w][b], mt[j]
+                for c in range(len(arm)):
+                    row[c] -= pw * mj[c]
+                value -= pw * g[j]
+            system.append(row)
+            rhs.append(value)
+        return _cholesky_solve(system, rhs)
 
     def _wrist_command(self, ref: list[float]) -> list[float]:
         """``q̇_W = Jr_W⁺·(k·e - Jr_A·q̇_A)``, within the limits: the flange's rotation by the arm joints
@@ -530,12 +551,41 @@ def _solve3(m00: float, m01: float, m02: float, m10: float, m11: float, m12: flo
             (c20 * b0 + (m01 * m20 - m00 * m21) * b1 + (m00 * m11 - m01 * m10) * b2) * d)
 
 
-def _solve_spd(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """``matrix⁻¹·rhs`` for a symmetric positive definite ``matrix`` (LAPACK's Cholesky solve)."""
-    _, solution, info = dposv(matrix, rhs)
-    if info != 0:  # as numpy's solve would: the loop's failure policy stops the controller
-        raise np.linalg.LinAlgError(f"not positive definite (LAPACK dposv info {info})")
-    return solution
+def _cholesky_solve(a: list[list[float]], b: list[float]) -> list[float]:
+    """``A⁻¹·b`` for a symmetric positive definite n x n ``A`` (lists of floats; its lower triangle is read):
+    ``A = L·Lᵀ`` column by column, then ``L·y = b`` and ``Lᵀ·x = y``. Raises ``np.linalg.LinAlgError`` when
+    ``A`` is not positive definite (a pivot not above zero), as numpy's solvers do: the loop's failure policy
+    stops the controller. The compiled kernel does the same operations in the same order."""
+    n = len(b)
+    lower = [[0.0] * n for _ in range(n)]
+    for j in range(n):
+        lj = lower[j]
+        pivot = a[j][j]
+        for k in range(j):
+            pivot -= lj[k] * lj[k]
+        if not pivot > 0.0:  # (also NaN)
+            raise np.linalg.LinAlgError(f"not positive definite (pivot {pivot!r} at row {j})")
+        d = lj[j] = math.sqrt(pivot)
+        for i in range(j + 1, n):
+            li = lower[i]
+            value = a[i][j]
+            for k in range(j):
+                value -= li[k] * lj[k]
+            li[j] = value / d
+    y = [0.0] * n
+    for i in range(n):  # L·y = b
+        li = lower[i]
+        value = b[i]
+        for k in range(i):
+            value -= li[k] * y[k]
+        y[i] = value / li[i]
+    x = [0.0] * n
+    for i in range(n - 1, -1, -1):  # Lᵀ·x = y
+        value = y[i]
+        for k in range(i + 1, n):
+            value -= lower[k][i] * x[k]
+        x[i] = value / lower[i][i]
+    return x
 
 
 __all__ = ["CartesianAdmittanceController", "rotation_vector"]

@@ -1,5 +1,6 @@
 """The compiled form of :class:`~jointctl.control.cartesian_admittance_controller.CartesianAdmittanceController`
-with H diagonal (``inertia_estimate``): its ``update`` on arrays, operation for operation as the Python.
+(H diagonal, ``inertia_estimate``, or the model's M(q), ``use_model_inertia``): its ``update`` on arrays, operation
+for operation as the Python.
 
 - ``_measure``: the joint state gathered, the pose set and the flange's Jacobians taken through
   :mod:`~jointctl.model.dynamics_kernel` (the same C functions on the controller's own ``RobotDynamics``
@@ -8,15 +9,21 @@ with H diagonal (``inertia_estimate``): its ``update`` on arrays, operation for 
 - the virtual force ``f = K·(p_att - p) - B·v + F``, ``τ - c·q̇`` with ``τ = Jvᵀ·f``;
 - the diagonal-H accelerations, or with wrist joints ``_wrist_accelerations`` (the 3 x 3 push-through solve)
   and ``_wrist_command`` (the orientation error as a rotation vector, the damped least-squares rows);
+- with the model's inertia, ``_model_accelerations``: M(q) from ``mj_fullM`` of the controller's own dynamics data
+  (the pose set with inertia: ``mj_crb``) gathered to its joints, with wrist joints ``Tᵀ·M·T`` and ``Tᵀ·g``, and
+  ``_cholesky_solve`` (factor and solve in place in the state table). A matrix that is not positive definite (the
+  Python raises ``LinAlgError``) writes NaN into the velocity controllers' references: their commands are not
+  finite, so the stretch ends at that cycle and the loop fails the chain there (by its non-finite commands: the
+  failure's controller and reason are the velocity controller's, not the Python's ``LinAlgError``);
 - the hand-over to the velocity controllers' reference slots.
 
 Sums run in the Python's order (its dot products are plain loops, so both paths do the same operations).
-``use_model_inertia: true`` (a Cholesky solve of M(q) every cycle, LAPACK's ``dposv``) has no compiled form.
 
 The controller's numbers are three tables: integers (:data:`INDEX_ROWS` rows: joints, reference slots, arm
 and wrist joints, the bodies' and sensor's indices), parameters (:data:`PARAMETER_ROWS`
 rows: gains, joint damping, H and H⁻¹, velocity limits, scalars) and state (:data:`STATE_ROWS` rows: every
-quantity the Python controller keeps). :class:`CartesianArrays` makes them from a started controller and
+quantity the Python controller keeps; with the model's inertia, blocks of work rows after them: M(q), the
+factor, M·T, P and MuJoCo's dense nv x nv M). :class:`CartesianArrays` makes them from a started controller and
 :meth:`CartesianArrays.unpack` puts the state back into its attributes (``velocity_reference``, the tare's
 sums, ``orientation_error``, ``virtual_force``, ``force``, ``acceleration``, ``velocity_command``...).
 """
@@ -29,15 +36,18 @@ import numpy as np
 
 from jointctl.control.cartesian_admittance_controller import WRIST_DLS_DAMPING, CartesianAdmittanceController
 from jointctl.jit import kernel
-from jointctl.model.dynamics_kernel import DynamicsArrays, dynamics_jacobians, dynamics_set_pose
+from jointctl.model.dynamics_kernel import (DynamicsArrays, dynamics_jacobians, dynamics_mass_matrix,
+                                            dynamics_set_pose)
 
 #: Integer rows: the hardware index of each joint, each velocity controller's reference slot, the arm joints,
 #: the wrist joints, and the scalars ``SCALARS_I``.
 GATHER, TARGETS, ARM, WRIST, SCALARS_I = range(5)
 INDEX_ROWS = 5
 #: ``SCALARS_I`` columns: the flange's and the sensor frame's bodies, the sensor's row in the hardware's
-#: wrenches, the number of arm joints and of wrist joints.
-FLANGE_BODY, SENSOR_BODY, SENSOR_ROW, N_ARM, N_WRIST = range(5)
+#: wrenches, the number of arm joints and of wrist joints, whether H is the model's M(q) (1) or diagonal (0), the
+#: first state row of the model-inertia blocks (n rows each: M(q), the Cholesky factor, M·T, P; then the rows
+#: holding MuJoCo's dense nv x nv M) and the model's nv.
+FLANGE_BODY, SENSOR_BODY, SENSOR_ROW, N_ARM, N_WRIST, MODEL_INERTIA, MASS_ROW, NV = range(8)
 
 #: Parameter rows: K, B, p_att (``GAINS``: columns 0-2, 3-5, 6-8), c per joint, H and H⁻¹ per joint, the
 #: velocity limit per joint, and the scalars ``SCALARS``.
@@ -49,8 +59,8 @@ WRIST_GAIN, LAMBDA2, TARE_UNTIL = range(3)
 #: State rows (3-vectors in columns 0-2, joint vectors in joint order, arm vectors in arm order):
 (TARE_SUM, TARE, TARGET_ROTATION, ORIENTATION_ERROR, VELOCITY_REFERENCE, VELOCITY_COMMAND, SENSED_FORCE, FORCE,
  VIRTUAL_FORCE, ACCELERATION, VELOCITY, TORQUE, GENERALIZED, QD, Q, DLS_X, DLS_Y, DLS_Z, ERROR_ROTATION, U,
- FLAGS) = range(21)
-STATE_ROWS = 21
+ FLAGS, SOLVE) = range(22)
+STATE_ROWS = 22
 #: ``TARE_SUM`` column 3: the readings summed. ``FLAGS`` columns: the admittance ran (force, virtual force,
 #: acceleration and velocity are set), the wrist ran (the orientation error, the rows of Jr_W⁺ are set).
 TARE_COUNT = 3
@@ -58,22 +68,23 @@ RAN, WRIST_RAN = range(2)
 
 
 def cartesian_reason(c: CartesianAdmittanceController) -> str | None:
-    """Why ``c`` has no compiled form (None when it has one)."""
-    if c.use_model_inertia:
-        return (f"controller {c.name!r} (CartesianAdmittanceController): use_model_inertia (a Cholesky solve of "
-                f"M(q) every cycle) has no compiled form")
+    """Why ``c`` has no compiled form (None when it has one: every configuration has, ``inertia_estimate`` and
+    ``use_model_inertia`` alike)."""
     return None
 
 
 class CartesianArrays:
-    """The tables and buffers of one started ``CartesianAdmittanceController`` (H diagonal)."""
+    """The tables and buffers of one started ``CartesianAdmittanceController``."""
 
     def __init__(self, c: CartesianAdmittanceController) -> None:
         self.controller = c
         n, arm, wrist = len(c.joint_names), c.arm_joints, c.wrist_joints
         hw = c.hardware
-        width = max(n, 9)
         self.dynamics = DynamicsArrays(c.dynamics)
+        nv = self.dynamics.jacp.shape[1]
+        model = c.use_model_inertia
+        width = max(n, 9, nv) if model else max(n, 9)
+        rows = STATE_ROWS + (4 * n + -(-nv * nv // width) if model else 0)
         self.q = np.zeros(n)
         self.jv, self.jr = c.flange.translation_jacobian, c.flange.rotation_jacobian
         index = self.index = np.zeros((INDEX_ROWS, width), dtype=np.int64)
@@ -81,16 +92,17 @@ class CartesianArrays:
         index[TARGETS, :n] = c._target_indices
         index[ARM, :len(arm)] = arm
         index[WRIST, :len(wrist)] = wrist
-        index[SCALARS_I, :5] = (c.flange._body, c.sensor_frame._body, hw.sensor_names.index(c.sensor), len(arm),
-                                len(wrist))
+        index[SCALARS_I, :8] = (c.flange._body, c.sensor_frame._body, hw.sensor_names.index(c.sensor), len(arm),
+                                len(wrist), int(model), STATE_ROWS, nv)
         p = self.parameters = np.zeros((PARAMETER_ROWS, width))
         p[GAINS, :9] = c._gains
         p[JOINT_DAMPING, :n] = c.joint_damping
-        p[INERTIA, :n] = c._inertia
-        p[INVERSE_INERTIA, :n] = c._inverse_inertia
+        if not model:
+            p[INERTIA, :n] = c._inertia
+            p[INVERSE_INERTIA, :n] = c._inverse_inertia
         p[LIMIT, :n] = c.max_velocity
         p[SCALARS, :3] = (c.wrist_gain, WRIST_DLS_DAMPING**2, c._tare_until_s)
-        s = self.state = np.zeros((STATE_ROWS, width))
+        s = self.state = np.zeros((rows, width))
         s[TARE_SUM, :3] = c._tare_sum
         s[TARE_SUM, TARE_COUNT] = c._tare_count
         s[TARE, :3] = c._tare
@@ -210,7 +222,7 @@ def cartesian_measure(index, state, addresses, dyn_qpos, qpos_adr, dof_adr, jacp
         i = index[GATHER, j]
         q[j] = position[i]
         state[QD, j] = velocity[i]
-    dynamics_set_pose(addresses, dyn_qpos, qpos_adr, q, False)
+    dynamics_set_pose(addresses, dyn_qpos, qpos_adr, q, index[SCALARS_I, MODEL_INERTIA] != 0)
     dynamics_jacobians(addresses, jacp, jacr, index[SCALARS_I, FLANGE_BODY], dof_adr, jv, jr)
     b = index[SCALARS_I, SENSOR_BODY]
     s = index[SCALARS_I, SENSOR_ROW]
@@ -287,6 +299,99 @@ def wrist_accelerations(index, parameters, state, jr):
 
 
 @kernel
+def cholesky_solve(table, a_row, x_row, n):
+    """``_cholesky_solve``: ``A⁻¹·b`` for the symmetric positive definite n x n ``A`` in ``table[a_row:a_row + n,
+    :n]`` (its lower triangle read, then overwritten by the factor L) and ``b`` in ``table[x_row, :n]``
+    (overwritten by the solution); the same operations in the same order. False (and nothing solved) when a pivot
+    is not above zero: ``A`` is not positive definite."""
+    for j in range(n):
+        pivot = table[a_row + j, j]
+        for k in range(j):
+            pivot -= table[a_row + j, k] * table[a_row + j, k]
+        if not pivot > 0.0:  # (also NaN)
+            return False
+        d = math.sqrt(pivot)
+        table[a_row + j, j] = d
+        for i in range(j + 1, n):
+            value = table[a_row + i, j]
+            for k in range(j):
+                value -= table[a_row + i, k] * table[a_row + j, k]
+            table[a_row + i, j] = value / d
+    for i in range(n):  # L·y = b
+        value = table[x_row, i]
+        for k in range(i):
+            value -= table[a_row + i, k] * table[x_row, k]
+        table[x_row, i] = value / table[a_row + i, i]
+    for i in range(n - 1, -1, -1):  # Lᵀ·x = y
+        value = table[x_row, i]
+        for k in range(i + 1, n):
+            value -= table[a_row + k, i] * table[x_row, k]
+        table[x_row, i] = value / table[a_row + i, i]
+    return True
+
+
+@kernel
+def model_accelerations(index, parameters, state, addresses, dof_adr, jr):
+    """``_model_accelerations``: q̈_A (``state[ACCELERATION]``, arm order) with H = M(q), the model's inertia:
+    ``(Tᵀ·M·T)·q̈_A = Tᵀ·g``, T = [I; -P], P = Jr_W⁺·Jr_A (the rows of Jr_W⁺ into ``state[DLS_X:DLS_Z + 1]``).
+    False when the matrix is not positive definite (``state[ACCELERATION]`` unchanged)."""
+    n = dof_adr.shape[0]
+    n_arm, n_wrist = index[SCALARS_I, N_ARM], index[SCALARS_I, N_WRIST]
+    mass = index[SCALARS_I, MASS_ROW]
+    lower, mt, pr, full = mass + n, mass + 2 * n, mass + 3 * n, mass + 4 * n
+    dynamics_mass_matrix(addresses, index[SCALARS_I, NV], dof_adr, state, full, state, mass)
+    if n_wrist == 0:
+        for j in range(n):
+            state[SOLVE, j] = state[GENERALIZED, j]
+        if not cholesky_solve(state, mass, SOLVE, n):
+            return False
+        for j in range(n):
+            state[ACCELERATION, j] = state[SOLVE, j]
+        return True
+    g00 = g01 = g02 = g11 = g12 = g22 = 0.0  # Jr_W·Jr_Wᵀ
+    for w in range(n_wrist):
+        j = index[WRIST, w]
+        x, y, z = jr[0, j], jr[1, j], jr[2, j]
+        g00 += x * x
+        g01 += x * y
+        g02 += x * z
+        g11 += y * y
+        g12 += y * z
+        g22 += z * z
+    lam2 = parameters[SCALARS, LAMBDA2]
+    i00, i01, i02, i11, i12, i22 = symmetric_inverse(g00 + lam2, g01, g02, g11 + lam2, g12, g22 + lam2)
+    for w in range(n_wrist):  # Jr_W⁺, row by row, and P = Jr_W⁺·Jr_A
+        j = index[WRIST, w]
+        x, y, z = symmetric_times(i00, i01, i02, i11, i12, i22, jr[0, j], jr[1, j], jr[2, j])
+        state[DLS_X, w], state[DLS_Y, w], state[DLS_Z, w] = x, y, z
+        for b in range(n_arm):
+            a = index[ARM, b]
+            state[pr + w, b] = x * jr[0, a] + y * jr[1, a] + z * jr[2, a]
+    for i in range(n):  # M·T, row by row
+        for b in range(n_arm):
+            value = state[mass + i, index[ARM, b]]
+            for w in range(n_wrist):
+                value -= state[mass + i, index[WRIST, w]] * state[pr + w, b]
+            state[mt + i, b] = value
+    for b in range(n_arm):  # Tᵀ·M·T and Tᵀ·g
+        a = index[ARM, b]
+        for c in range(n_arm):
+            value = state[mt + a, c]
+            for w in range(n_wrist):
+                value -= state[pr + w, b] * state[mt + index[WRIST, w], c]
+            state[lower + b, c] = value
+        value = state[GENERALIZED, a]
+        for w in range(n_wrist):
+            value -= state[pr + w, b] * state[GENERALIZED, index[WRIST, w]]
+        state[SOLVE, b] = value
+    if not cholesky_solve(state, lower, SOLVE, n_arm):
+        return False
+    for b in range(n_arm):
+        state[ACCELERATION, b] = state[SOLVE, b]
+    return True
+
+
+@kernel
 def wrist_command(index, parameters, state, xmat, jr):
     """``_wrist_command``: the wrist joints' velocities ``Jr_W⁺·(k·e - Jr_A·q̇_A)`` within their limits, into
     ``state[VELOCITY_COMMAND]`` at the wrist joints; the orientation error into ``state[ORIENTATION_ERROR]``."""
@@ -318,8 +423,8 @@ def wrist_command(index, parameters, state, xmat, jr):
 @kernel
 def cartesian_update(index, parameters, state, addresses, dyn_qpos, qpos_adr, dof_adr, jacp, jacr, xpos, xmat, q,
                      jv, jr, time_s, period_s, position, velocity, wrench, velocities):
-    """``CartesianAdmittanceController.update`` (H diagonal): the velocity controllers' references written into
-    ``velocities`` (their reference slots)."""
+    """``CartesianAdmittanceController.update``: the velocity controllers' references written into ``velocities``
+    (their reference slots); NaN there when the model's inertia is not positive definite (the Python raises)."""
     n = jv.shape[1]
     cartesian_measure(index, state, addresses, dyn_qpos, qpos_adr, dof_adr, jacp, jacr, xpos, xmat, q, jv, jr,
                       position, velocity, wrench)
@@ -350,7 +455,15 @@ def cartesian_update(index, parameters, state, addresses, dyn_qpos, qpos_adr, do
         state[TORQUE, j] = t
         state[GENERALIZED, j] = t - parameters[JOINT_DAMPING, j] * state[QD, j]
     n_arm, n_wrist = index[SCALARS_I, N_ARM], index[SCALARS_I, N_WRIST]
-    if n_wrist > 0:
+    if index[SCALARS_I, MODEL_INERTIA] != 0:
+        if not model_accelerations(index, parameters, state, addresses, dof_adr, jr):
+            state[FLAGS, RAN] = 1.0  # (the Python has set the force, velocity and torque before it raises)
+            if n_wrist > 0:
+                state[FLAGS, WRIST_RAN] = 1.0  # (and the rows of Jr_W⁺)
+            for j in range(n):
+                velocities[index[TARGETS, j]] = math.nan
+            return
+    elif n_wrist > 0:
         wrist_accelerations(index, parameters, state, jr)
     else:
         for j in range(n):

@@ -8,7 +8,8 @@ those of the Python methods, bit for bit (the same C functions, the same gathers
 - :func:`dynamics_set_pose` is ``set_pose(q, inertia=...)``;
 - :func:`dynamics_jacobians` is ``frame(link).jacobians()`` (3 x n each, base frame);
 - :func:`dynamics_gravity` is ``gravity_at_pose()`` [N or N·m];
-- :func:`dynamics_inertia` is ``inertia_at_pose(qdd)`` [N or N·m].
+- :func:`dynamics_inertia` is ``inertia_at_pose(qdd)`` [N or N·m];
+- :func:`dynamics_mass_matrix` is ``mass_matrix()`` (n x n) [kg, kg·m or kg·m²], after ``set_pose`` with inertia.
 
 A frame's position and rotation are the data's ``xpos[body]`` and ``xmat[body]``, read by the caller.
 """
@@ -19,7 +20,8 @@ import numpy as np
 
 from jointctl.jit import kernel
 from jointctl.model.dynamics import RobotDynamics
-from jointctl.model.mujoco_functions_kernel import mj_comPos, mj_crb, mj_jacBody, mj_kinematics, mj_mulM, mj_rne
+from jointctl.model.mujoco_functions_kernel import (mj_comPos, mj_crb, mj_fullM, mj_jacBody, mj_kinematics, mj_mulM,
+                                                    mj_rne)
 
 #: ``DynamicsArrays.addresses``: the model's and the data's address.
 MODEL, DATA = range(2)
@@ -89,3 +91,17 @@ def dynamics_inertia(addresses, tau, qdd_full, dof_adr, qdd, out):
     mj_mulM(addresses[MODEL], addresses[DATA], tau.ctypes.data, qdd_full.ctypes.data)
     for j in range(dof_adr.shape[0]):
         out[j] = tau[dof_adr[j]]
+
+
+@kernel
+def dynamics_mass_matrix(addresses, nv, dof_adr, table, full_row, out, out_row):
+    """``RobotDynamics.mass_matrix()`` into ``out[out_row + i, j]`` (i, j < n): MuJoCo's dense ``nv`` x ``nv``
+    M(q) (``nv``: the model's) is written row by row from ``table[full_row, 0]`` on (a C-ordered float table whose
+    rows from ``full_row`` hold nv² numbers), then gathered to the dynamics' joints."""
+    width = table.shape[1]
+    mj_fullM(addresses[MODEL], addresses[DATA], table.ctypes.data + full_row * width * 8)
+    n = dof_adr.shape[0]
+    for i in range(n):
+        for j in range(n):
+            flat = dof_adr[i] * nv + dof_adr[j]
+            out[out_row + i, j] = table[full_row + flat // width, flat % width]

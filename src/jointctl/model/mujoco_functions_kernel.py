@@ -3,7 +3,7 @@ numba's symbol table, and the functions declared by address (``mjModel*``, ``mjD
 ``uintp``: a model's or data's ``_address``, an array's ``ctypes.data``).
 
 Declared: ``mj_step``, and the pose queries of :class:`~jointctl.model.dynamics.RobotDynamics`:
-``mj_kinematics``, ``mj_comPos``, ``mj_crb``, ``mj_jacBody``, ``mj_rne``, ``mj_mulM``.
+``mj_kinematics``, ``mj_comPos``, ``mj_crb``, ``mj_jacBody``, ``mj_rne``, ``mj_mulM``, ``mj_fullM``.
 """
 
 from __future__ import annotations
@@ -41,3 +41,5 @@ mj_jacBody = types.ExternalFunction("mj_jacBody", types.void(_POINTER, _POINTER,
 mj_rne = types.ExternalFunction("mj_rne", types.void(_POINTER, _POINTER, types.int32, _POINTER))
 #: ``void mj_mulM(const mjModel* m, const mjData* d, mjtNum* res, const mjtNum* vec)``.
 mj_mulM = types.ExternalFunction("mj_mulM", types.void(_POINTER, _POINTER, _POINTER, _POINTER))
+#: ``void mj_fullM(const mjModel* m, const mjData* d, mjtNum* dst)``: M(q) as a dense nv x nv matrix, row by row.
+mj_fullM = types.ExternalFunction("mj_fullM", types.void(_POINTER, _POINTER, _POINTER))
