@@ -1,8 +1,8 @@
-"""Which loops run compiled, and the compiled run itself.
+"""Which loops run compiled.
 
 :func:`compile_loop` is a :class:`~jointctl.runtime.loop.ControlLoop`'s ``compiler``: given the loop about to
-run, it returns a :class:`~jointctl.compiled.run.CompiledRun` when every part of the cycle has a compiled form, else the reason it
-stays in Python (the first part without one). Parts with a compiled form:
+run, it returns a :class:`~jointctl.compiled.run.CompiledRun` when every part of the cycle has a compiled form,
+else the reason it stays in Python (the first part without one). Parts with a compiled form:
 
 - the hardware: :class:`~jointctl.hardware.mujoco_hardware.MujocoHardware` (not paced to the wall clock);
 - controllers: effort ``JointPositionController`` (with any feed-forward: damping, and the model's gravity and
