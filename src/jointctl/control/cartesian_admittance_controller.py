@@ -427,17 +427,23 @@ class CartesianAdmittanceController(Controller):
     # with K = Jr_A·H_A⁻¹·Jr_Aᵀ: every inverse is of a 3 x 3 matrix, whatever the joints. The p_w
     # are formed before any product with H_W or g_W: G⁻¹ alone is large (up to 1/λ²) along
     # rotations the wrist cannot make, Jr_W⁺ is not.
-    def _wrist_accelerations(self, g: list[float]) -> list[float]:
-        """q̈_A with the wrist holding the flange orientation, H = diag(inertia_estimate)."""
+    def _wrist_rows(self) -> tuple[list, list]:
+        """Jr's columns (per joint) and the rows of Jr_W⁺ = Jr_Wᵀ·(Jr_W·Jr_Wᵀ + λ²·I)⁻¹ (per wrist joint), kept in
+        ``jr_columns`` and ``_dls_rows``."""
         jr = self.jr_columns = self.jr.T.tolist()  # per joint: its column of Jr
-        h, h_inverse = self._inertia, self._inverse_inertia
         g00 = g01 = g02 = g11 = g12 = g22 = 0.0  # Jr_W·Jr_Wᵀ
         for j in self.wrist_joints:
             x, y, z = jr[j]
             g00 += x * x; g01 += x * y; g02 += x * z; g11 += y * y; g12 += y * z; g22 += z * z  # noqa: E702
         lam2 = WRIST_DLS_DAMPING**2
         gi = _symmetric_inverse(g00 + lam2, g01, g02, g11 + lam2, g12, g22 + lam2)
-        self._dls_rows = rows = [_symmetric_times(gi, *jr[j]) for j in self.wrist_joints]  # the p_w
+        self._dls_rows = rows = [_symmetric_times(gi, *jr[j]) for j in self.wrist_joints]
+        return jr, rows
+
+    def _wrist_accelerations(self, g: list[float]) -> list[float]:
+        """q̈_A with the wrist holding the flange orientation, H = diag(inertia_estimate)."""
+        jr, rows = self._wrist_rows()  # Jr's columns, the p_w
+        h, h_inverse = self._inertia, self._inverse_inertia
         q00 = q01 = q02 = q11 = q12 = q22 = 0.0  # Q
         t0 = t1 = t2 = 0.0                       # t
         for j, (x, y, z) in zip(self.wrist_joints, rows):
@@ -473,14 +479,7 @@ class CartesianAdmittanceController(Controller):
         g = generalized.tolist()
         if not self.wrist_joints:
             return _cholesky_solve(mass, g)
-        jr = self.jr_columns = self.jr.T.tolist()  # per joint: its column of Jr
-        g00 = g01 = g02 = g11 = g12 = g22 = 0.0  # Jr_W·Jr_Wᵀ
-        for j in self.wrist_joints:
-            x, y, z = jr[j]
-            g00 += x * x; g01 += x * y; g02 += x * z; g11 += y * y; g12 += y * z; g22 += z * z  # noqa: E702
-        lam2 = WRIST_DLS_DAMPING**2
-        gi = _symmetric_inverse(g00 + lam2, g01, g02, g11 + lam2, g12, g22 + lam2)
-        self._dls_rows = rows = [_symmetric_times(gi, *jr[j]) for j in self.wrist_joints]  # Jr_W⁺, row by row
+        jr, rows = self._wrist_rows()  # Jr's columns, Jr_W⁺ row by row
         arm, wrist = self.arm_joints, self.wrist_joints
         p = [[x * jr[a][0] + y * jr[a][1] + z * jr[a][2] for a in arm] for x, y, z in rows]  # P = Jr_W⁺·Jr_A
         mt = []  # M·T, row by row

@@ -233,10 +233,10 @@ def cartesian_measure(index, state, addresses, dyn_qpos, qpos_adr, dof_adr, jacp
 
 
 @kernel
-def wrist_accelerations(index, parameters, state, jr):
-    """``_wrist_accelerations``: q̈_A (``state[ACCELERATION]``, arm order) with the wrist holding the flange
-    orientation, H diagonal; the rows of Jr_W⁺ into ``state[DLS_X:DLS_Z + 1]``."""
-    n_arm, n_wrist = index[SCALARS_I, N_ARM], index[SCALARS_I, N_WRIST]
+def wrist_rows(index, parameters, state, jr):
+    """``_wrist_rows``: the rows of Jr_W⁺ = Jr_Wᵀ·(Jr_W·Jr_Wᵀ + λ²·I)⁻¹, one per wrist joint, into
+    ``state[DLS_X:DLS_Z + 1]``."""
+    n_wrist = index[SCALARS_I, N_WRIST]
     g00 = g01 = g02 = g11 = g12 = g22 = 0.0  # Jr_W·Jr_Wᵀ
     for w in range(n_wrist):
         j = index[WRIST, w]
@@ -249,12 +249,23 @@ def wrist_accelerations(index, parameters, state, jr):
         g22 += z * z
     lam2 = parameters[SCALARS, LAMBDA2]
     i00, i01, i02, i11, i12, i22 = symmetric_inverse(g00 + lam2, g01, g02, g11 + lam2, g12, g22 + lam2)
+    for w in range(n_wrist):
+        j = index[WRIST, w]
+        x, y, z = symmetric_times(i00, i01, i02, i11, i12, i22, jr[0, j], jr[1, j], jr[2, j])
+        state[DLS_X, w], state[DLS_Y, w], state[DLS_Z, w] = x, y, z
+
+
+@kernel
+def wrist_accelerations(index, parameters, state, jr):
+    """``_wrist_accelerations``: q̈_A (``state[ACCELERATION]``, arm order) with the wrist holding the flange
+    orientation, H diagonal; the rows of Jr_W⁺ into ``state[DLS_X:DLS_Z + 1]``."""
+    n_arm, n_wrist = index[SCALARS_I, N_ARM], index[SCALARS_I, N_WRIST]
+    wrist_rows(index, parameters, state, jr)
     q00 = q01 = q02 = q11 = q12 = q22 = 0.0  # Q
     t0 = t1 = t2 = 0.0                       # t
     for w in range(n_wrist):
         j = index[WRIST, w]
-        x, y, z = symmetric_times(i00, i01, i02, i11, i12, i22, jr[0, j], jr[1, j], jr[2, j])  # p_w
-        state[DLS_X, w], state[DLS_Y, w], state[DLS_Z, w] = x, y, z
+        x, y, z = state[DLS_X, w], state[DLS_Y, w], state[DLS_Z, w]  # p_w
         h = parameters[INERTIA, j]
         gj, hx, hy, hz = state[GENERALIZED, j], h * x, h * y, h * z
         q00 += hx * x
@@ -348,22 +359,9 @@ def model_accelerations(index, parameters, state, addresses, dof_adr, jr):
         for j in range(n):
             state[ACCELERATION, j] = state[SOLVE, j]
         return True
-    g00 = g01 = g02 = g11 = g12 = g22 = 0.0  # Jr_W·Jr_Wᵀ
-    for w in range(n_wrist):
-        j = index[WRIST, w]
-        x, y, z = jr[0, j], jr[1, j], jr[2, j]
-        g00 += x * x
-        g01 += x * y
-        g02 += x * z
-        g11 += y * y
-        g12 += y * z
-        g22 += z * z
-    lam2 = parameters[SCALARS, LAMBDA2]
-    i00, i01, i02, i11, i12, i22 = symmetric_inverse(g00 + lam2, g01, g02, g11 + lam2, g12, g22 + lam2)
-    for w in range(n_wrist):  # Jr_W⁺, row by row, and P = Jr_W⁺·Jr_A
-        j = index[WRIST, w]
-        x, y, z = symmetric_times(i00, i01, i02, i11, i12, i22, jr[0, j], jr[1, j], jr[2, j])
-        state[DLS_X, w], state[DLS_Y, w], state[DLS_Z, w] = x, y, z
+    wrist_rows(index, parameters, state, jr)
+    for w in range(n_wrist):  # P = Jr_W⁺·Jr_A
+        x, y, z = state[DLS_X, w], state[DLS_Y, w], state[DLS_Z, w]
         for b in range(n_arm):
             a = index[ARM, b]
             state[pr + w, b] = x * jr[0, a] + y * jr[1, a] + z * jr[2, a]
