@@ -42,10 +42,13 @@ ADMITTANCE, CARTESIAN_ADMITTANCE = 10, 11
 #: ``out[CYCLE]`` is updated, not written); a step raised a warning (the cycle ``out[CYCLE]`` stepped).
 DONE, NOT_FINITE, WARNED = range(3)
 #: A stretch also ends when the trajectory executor's supervision decided its goal's end at cycle
-#: ``out[CYCLE] - 1`` (that cycle run whole: the Python then ends the goal).
-DECIDED = 3
-#: ``out``: where the stretch ended, how, and the trace rows, video frames and object poses it kept.
-CYCLE, STATUS, ROWS, FRAMES, POSES = range(5)
+#: ``out[CYCLE] - 1`` (that cycle run whole: the Python then ends the goal), or when an update cannot be made in
+#: machine code (the Cartesian controller's model inertia not positive definite, where the Python raises): the
+#: cycle ``out[CYCLE]`` is handed to Python from its update ``out[UPDATE]`` on (that update run in Python again).
+DECIDED, HANDED = 3, 4
+#: ``out``: where the stretch ended, how, the trace rows, video frames and object poses it kept, and the update a
+#: handed cycle goes on from.
+CYCLE, STATUS, ROWS, FRAMES, POSES, UPDATE = range(6)
 
 
 @kernel
@@ -98,9 +101,12 @@ def run_cycles(k0, n, period_s,
             elif kind == ADMITTANCE:
                 admittance_update(parameters, state, c, t, period_s, position, velocity, wrench, reference_velocities)
             elif kind == CARTESIAN_ADMITTANCE:
-                cartesian_update(nac_index, nac_parameters, nac_state, nac_addresses, nac_qpos, nac_qpos_adr,
-                                 nac_dof_adr, nac_jacp, nac_jacr, nac_xpos, nac_xmat, nac_q, nac_jv, nac_jr, t,
-                                 period_s, position, velocity, wrench, reference_velocities)
+                if not cartesian_update(nac_index, nac_parameters, nac_state, nac_addresses, nac_qpos, nac_qpos_adr,
+                                        nac_dof_adr, nac_jacp, nac_jacr, nac_xpos, nac_xmat, nac_q, nac_jv, nac_jr, t,
+                                        period_s, position, velocity, wrench, reference_velocities):
+                    out[CYCLE], out[STATUS], out[ROWS], out[FRAMES], out[POSES] = k, HANDED, kept, framed, posed
+                    out[UPDATE] = c
+                    return
             elif kind == JOINT_STATE:
                 joint_state_update(parameters, state, c, latest, t, position, velocity, effort)
             elif kind == FEEDFORWARD:

@@ -38,7 +38,7 @@ class CompiledRun:
 
         self.loop = loop
         self.cycle = cycle
-        self.out = np.zeros(5, dtype=np.int64)
+        self.out = np.zeros(6, dtype=np.int64)
         #: The loop's parts as compiled: an edge that changes them while the run goes (a hook added from its
         #: thread) ends the compiled run at the end of the stretch, and the loop goes on in Python.
         self.parts = (loop.inputs, loop.observers, loop.manager.update_calls)
@@ -209,6 +209,9 @@ class CompiledRun:
                 k = stopped_at
                 loop.cycle = k
                 self._finish_supervision()
+                if status == cycle.HANDED:  # the cycle goes on in Python from the update that could not be made,
+                    k, status = self._python_cycle(k, from_update=int(out[cycle.UPDATE])), cycle.DONE
+                    break  # and the run after it (the update's failure changed the loop's parts)
                 if status not in (cycle.DONE, cycle.DECIDED):
                     break
         finally:
@@ -249,20 +252,22 @@ class CompiledRun:
         return (ex.goals.pending is not None or ex._streamed is not None or ex.hardware.fault is not None
                 or (goal is not None and goal.cancel_requested and plan is not None and not plan.stopping))
 
-    def _python_cycle(self, k: int) -> int:
+    def _python_cycle(self, k: int, from_update: int | None = None) -> int:
         """Run cycle ``k`` in Python, as the loop does, with every part's state in its object; then pack again.
-        Returns the next cycle."""
+        ``from_update``: the cycle ran in machine code up to that update (its inputs, read and earlier updates
+        made), which and what follows run here. Returns the next cycle."""
         self.unpack()
         loop, hw, manager = self.loop, self.loop.hardware, self.loop.manager
         period = loop.period_s
         t = k * period
         loop.cycle = k
         try:
-            for hook in loop.inputs:
-                hook(t)
-            hw.read()
+            if from_update is None:
+                for hook in loop.inputs:
+                    hook(t)
+                hw.read()
             failed = False
-            for update in manager.update_calls:
+            for update in manager.update_calls[from_update or 0:]:
                 try:
                     update(t, period)
                 except Exception as exc:  # noqa: BLE001  (the failure policy: see ControllerManager)

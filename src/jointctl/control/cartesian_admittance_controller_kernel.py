@@ -12,9 +12,8 @@ for operation as the Python.
 - with the model's inertia, ``_model_accelerations``: M(q) from ``mj_fullM`` of the controller's own dynamics data
   (the pose set with inertia: ``mj_crb``) gathered to its joints, with wrist joints ``Tᵀ·M·T`` and ``Tᵀ·g``, and
   ``_cholesky_solve`` (factor and solve in place in the state table). A matrix that is not positive definite (the
-  Python raises ``LinAlgError``) writes NaN into the velocity controllers' references: their commands are not
-  finite, so the stretch ends at that cycle and the loop fails the chain there (by its non-finite commands: the
-  failure's controller and reason are the velocity controller's, not the Python's ``LinAlgError``);
+  Python raises ``LinAlgError``) makes :func:`cartesian_update` return False, the references unwritten: the
+  compiled cycle hands that cycle to Python from this update on, which raises as the Python does;
 - the hand-over to the velocity controllers' reference slots.
 
 Sums run in the Python's order (its dot products are plain loops, so both paths do the same operations).
@@ -422,7 +421,8 @@ def wrist_command(index, parameters, state, xmat, jr):
 def cartesian_update(index, parameters, state, addresses, dyn_qpos, qpos_adr, dof_adr, jacp, jacr, xpos, xmat, q,
                      jv, jr, time_s, period_s, position, velocity, wrench, velocities):
     """``CartesianAdmittanceController.update``: the velocity controllers' references written into ``velocities``
-    (their reference slots); NaN there when the model's inertia is not positive definite (the Python raises)."""
+    (their reference slots). False (nothing written) when the model's inertia is not positive definite, where the
+    Python update raises: the cycle then goes on in Python from this update."""
     n = jv.shape[1]
     cartesian_measure(index, state, addresses, dyn_qpos, qpos_adr, dof_adr, jacp, jacr, xpos, xmat, q, jv, jr,
                       position, velocity, wrench)
@@ -435,7 +435,7 @@ def cartesian_update(index, parameters, state, addresses, dyn_qpos, qpos_adr, do
         for j in range(n):
             state[VELOCITY_COMMAND, j] = 0.0
             velocities[index[TARGETS, j]] = 0.0
-        return
+        return True
     for a in range(3):  # v = Jv·q̇
         v = jv[a, 0] * state[QD, 0]
         for j in range(1, n):
@@ -455,12 +455,7 @@ def cartesian_update(index, parameters, state, addresses, dyn_qpos, qpos_adr, do
     n_arm, n_wrist = index[SCALARS_I, N_ARM], index[SCALARS_I, N_WRIST]
     if index[SCALARS_I, MODEL_INERTIA] != 0:
         if not model_accelerations(index, parameters, state, addresses, dof_adr, jr):
-            state[FLAGS, RAN] = 1.0  # (the Python has set the force, velocity and torque before it raises)
-            if n_wrist > 0:
-                state[FLAGS, WRIST_RAN] = 1.0  # (and the rows of Jr_W⁺)
-            for j in range(n):
-                velocities[index[TARGETS, j]] = math.nan
-            return
+            return False  # (the flags as they were: the update made again in Python sets what it sets)
     elif n_wrist > 0:
         wrist_accelerations(index, parameters, state, jr)
     else:
@@ -479,3 +474,4 @@ def cartesian_update(index, parameters, state, addresses, dyn_qpos, qpos_adr, do
         state[FLAGS, WRIST_RAN] = 1.0
     for j in range(n):
         velocities[index[TARGETS, j]] = state[VELOCITY_COMMAND, j]
+    return True
