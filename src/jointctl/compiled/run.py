@@ -253,37 +253,13 @@ class CompiledRun:
                 or (goal is not None and goal.cancel_requested and plan is not None and not plan.stopping))
 
     def _python_cycle(self, k: int, from_update: int | None = None) -> int:
-        """Run cycle ``k`` in Python, as the loop does, with every part's state in its object; then pack again.
-        ``from_update``: the cycle ran in machine code up to that update (its inputs, read and earlier updates
-        made), which and what follows run here. Returns the next cycle."""
+        """Run cycle ``k`` in Python (:meth:`~jointctl.runtime.loop.ControlLoop.run_cycle`) with every part's state
+        in its object; then pack again. ``from_update``: the cycle ran in machine code up to that update, which
+        and what follows run here. Returns the next cycle."""
         self.unpack()
-        loop, hw, manager = self.loop, self.loop.hardware, self.loop.manager
-        period = loop.period_s
-        t = k * period
-        loop.cycle = k
+        self.loop.cycle = k
         try:
-            if from_update is None:
-                for hook in loop.inputs:
-                    hook(t)
-                hw.read()
-            failed = False
-            for update in manager.update_calls[from_update or 0:]:
-                try:
-                    update(t, period)
-                except Exception as exc:  # noqa: BLE001  (the failure policy: see ControllerManager)
-                    manager.fail_update(update, exc, t)
-                    failed = True
-            for buf in hw.command_buffers:
-                total = sum(buf)
-                if total - total:  # NaN: a non-finite command somewhere in the list
-                    failed = True
-            if failed:
-                manager.check_outputs(t)
-            hw.write()
-            for hook in loop.observers:
-                hook(t)
-            hw.advance(period)
-            loop.cycle = k + 1
+            self.loop.run_cycle(k, from_update=from_update)
         finally:
             self.pack()  # (what the run's end puts back is then the objects' state, also after an error)
         return k + 1

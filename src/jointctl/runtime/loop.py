@@ -106,11 +106,6 @@ class ControlLoop:
         elif cycles < 0:
             raise ValueError(f"cycles must not be negative, got {cycles}")
         period = self.period_s
-        hw = self.hardware
-        read, write, advance = hw.read, hw.write, hw.advance
-        manager = self.manager
-        fail_update, check_outputs = manager.fail_update, manager.check_outputs
-        buffers = hw.command_buffers  # the command lists controllers were configured with
         wait = self.clock.wait_for
         realtime = self.clock.realtime
         start_cycle = self.cycle
@@ -127,44 +122,48 @@ class ControlLoop:
                 finally:
                     k = self.cycle  # where the compiled stretches stopped (also when a warning raised)
                 if half_done:  # cycle k updated, a command not finite: finished here, the run goes on in Python
-                    t = k * period
-                    check_outputs(t)
-                    write()
-                    for hook in self.observers:
-                        hook(t)
-                    advance(period)
+                    self.run_cycle(k, from_update=len(self.manager.update_calls))
                     k += 1
-                    self.cycle = k
+            cycle = self.run_cycle
             while k != end and not self._stop_requested:
-                t = k * period
-                for hook in self.inputs:
-                    hook(t)
-                read()
-                failed = False
-                for update in manager.update_calls:
-                    try:
-                        update(t, period)
-                    except Exception as exc:  # noqa: BLE001  (the failure policy: see ControllerManager)
-                        fail_update(update, exc, t)
-                        failed = True
-                for buf in buffers:
-                    total = sum(buf)
-                    if total - total:  # NaN: a non-finite command somewhere in the list
-                        failed = True
-                if failed:
-                    check_outputs(t)
-                write()
-                for hook in self.observers:
-                    hook(t)
-                advance(period)
+                cycle(k)
                 k += 1
-                self.cycle = k  # edges read loop time (time_s) while the loop runs
                 if realtime:
                     wait((k - start_cycle) * period)
         finally:
             self.cycle = k
             self.wall_time_s += time.perf_counter() - wall_start
         return k - start_cycle
+
+    def run_cycle(self, k: int, *, from_update: int | None = None) -> None:
+        """Cycle ``k`` in Python (see the module docstring): inputs, read, the updates under the failure policy,
+        the check for non-finite commands, write, observers, advance; then :attr:`cycle` is ``k + 1``.
+        ``from_update``: the cycle was made up to that update (an index of the manager's updates) elsewhere (the compiled cycle's inputs, read and
+        earlier updates); the updates from it on, and what follows, are made here."""
+        t = k * self.period_s
+        hw, manager = self.hardware, self.manager
+        if from_update is None:
+            for hook in self.inputs:
+                hook(t)
+            hw.read()
+        failed = False
+        for update in manager.update_calls if from_update is None else manager.update_calls[from_update:]:
+            try:
+                update(t, self.period_s)
+            except Exception as exc:  # noqa: BLE001  (the failure policy: see ControllerManager)
+                manager.fail_update(update, exc, t)
+                failed = True
+        for buf in hw.command_buffers:  # the command lists controllers were configured with
+            total = sum(buf)
+            if total - total:  # NaN: a non-finite command somewhere in the list
+                failed = True
+        if failed:
+            manager.check_outputs(t)
+        hw.write()
+        for hook in self.observers:
+            hook(t)
+        hw.advance(self.period_s)
+        self.cycle = k + 1  # edges read loop time (time_s) while the loop runs
 
     def _compiled_run(self):
         """The compiled run the compiler offers for this run, or None (with :attr:`mode_reason` set)."""
