@@ -13,8 +13,6 @@ from jointctl.metrics.step_loop import HoldingEffort, JointLoop, _compiled_run, 
 from jointctl.model import load_robot_model
 from jointctl.paths import robots_dir
 
-pytest.importorskip("numba")
-
 H = 0.001
 #: A load that varies along the joint (a pendulum's m·g·l·sin over ±1.5 rad), and a lighter model of it.
 GRID = np.linspace(-1.5, 1.5, 61)

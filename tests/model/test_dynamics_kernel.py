@@ -9,13 +9,10 @@ import pytest
 
 from jointctl.model import load_robot_model
 from jointctl.model.dynamics import RobotDynamics
-from jointctl.paths import robots_dir
-
-pytest.importorskip("numba")
-
-from jointctl.model.dynamics_kernel import (  # noqa: E402
+from jointctl.model.dynamics_kernel import (
     DynamicsArrays, dynamics_gravity, dynamics_inertia, dynamics_jacobians, dynamics_mass_matrix,
     dynamics_set_pose)
+from jointctl.paths import robots_dir
 
 ARM_XACRO = robots_dir() / "arm7dof" / "urdf" / "arm7dof.xacro"
 POSES = [np.array([0.0, 1.0, 0.0, -2.0, 0.0, 1.0, 0.0]) + np.random.default_rng(seed).uniform(-0.5, 0.5, 7)

@@ -20,6 +20,18 @@ STATES = {getattr(GoalStatus, n): n for n in ("PENDING", "ACTIVE", "PREEMPTED", 
                                              "REJECTED", "PREEMPTING", "RECALLING", "RECALLED", "LOST")}
 
 
+def result_connected(client, timeout_s: float) -> bool:
+    """Whether the server connects to ``client``'s result subscription within ``timeout_s``: actionlib's
+    wait_for_server does not wait for it, and a goal rejected at once would have its result published before it,
+    lost, and the client wait for it in vain."""
+    deadline = time.monotonic() + timeout_s
+    while client.action_client.result_sub.get_num_connections() == 0:
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)  # (rospy has no event for a new connection)
+    return True
+
+
 def main() -> None:
     kind, server, spec = sys.argv[1], sys.argv[2], json.loads(sys.argv[3])
     cancel_after = float(sys.argv[5]) if len(sys.argv) > 5 and sys.argv[4] == "--cancel-after" else None
@@ -34,9 +46,9 @@ def main() -> None:
     if not client.wait_for_server(rospy.Duration(20)):
         print(json.dumps({"state": "NO_SERVER"}))
         return
-    deadline = time.monotonic() + 20  # the server connected to the result subscription too (a goal refused at
-    while client.action_client.result_sub.get_num_connections() == 0 and time.monotonic() < deadline:  # once)
-        time.sleep(0.01)
+    if not result_connected(client, 20.0):
+        print(json.dumps({"state": "NO_RESULT_CONNECTION"}))
+        return
     goal = Goal()
     goal.trajectory = JointTrajectory(joint_names=spec["joint_names"])
     for t, q in spec["points"]:

@@ -22,6 +22,8 @@ import rospy
 from actionlib_msgs.msg import GoalStatus
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from action_client import result_connected  # (beside this script)
+
 STATES = {getattr(GoalStatus, n): n for n in ("PENDING", "ACTIVE", "PREEMPTED", "SUCCEEDED", "ABORTED",
                                              "REJECTED", "PREEMPTING", "RECALLING", "RECALLED", "LOST")}
 
@@ -45,11 +47,9 @@ def main() -> None:
         if not client.wait_for_server(rospy.Duration(30)):
             print(json.dumps({"error": "NO_SERVER"}))
             return
-        # wait_for_server does not wait for the server to connect to this client's result subscription: a goal
-        # rejected at once would have its result published before it, lost, and the client wait for it in vain.
-        deadline = time.monotonic() + 30
-        while client.action_client.result_sub.get_num_connections() == 0 and time.monotonic() < deadline:
-            time.sleep(0.01)
+        if not result_connected(client, 30.0):
+            print(json.dumps({"error": "NO_RESULT_CONNECTION"}))
+            return
     ended = [None] * len(specs)
     feedback = [0] * len(specs)
     start = time.monotonic()
