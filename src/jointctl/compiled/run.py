@@ -157,7 +157,11 @@ class CompiledRun:
         return False
 
     def _next_spawn(self, k: int) -> int | None:
-        cycles = [c for c in (s.next_cycle(k, self.loop.period_s) for s in self.spawners) if c is not None]
+        return self._next_cycle(self.spawners, k)
+
+    def _next_cycle(self, inputs, k: int) -> int | None:
+        """The first cycle from ``k`` on at which one of the timed ``inputs`` acts (None: none will)."""
+        cycles = [c for c in (hook.next_cycle(k, self.loop.period_s) for hook in inputs) if c is not None]
         return min(cycles) if cycles else None
 
     def _spawn(self, k: int) -> None:
@@ -228,8 +232,7 @@ class CompiledRun:
             fill_table(source, self.feed_tables[f], k, n, self.loop.period_s)
 
     def _next_send(self, k: int) -> int | None:
-        cycles = [c for c in (s.next_cycle(k, self.loop.period_s) for s in self.senders) if c is not None]
-        return min(cycles) if cycles else None
+        return self._next_cycle(self.senders, k)
 
     def _no_feedback_callback(self) -> bool:
         """False (and the loop goes on in Python) when the active goal delivers its feedback to a callback."""

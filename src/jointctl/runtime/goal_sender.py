@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
+from jointctl.runtime.loop import first_cycle_at
 from jointctl.trajectory.errors import InvalidTrajectory
 
 
@@ -35,8 +36,4 @@ class GoalSender:
         """The first cycle from ``cycle`` on (loop time ``k * period_s``) at which it sends a goal, or None."""
         if not self.pending:
             return None
-        at = self.pending[0][0]
-        k = max(cycle, int((at - 1e-9) / period_s) - 1)
-        while k * period_s + 1e-9 < at:
-            k += 1
-        return k
+        return first_cycle_at(self.pending[0][0], cycle, period_s)

@@ -39,6 +39,15 @@ CycleHook = Callable[[float], None]
 Compiler = Callable[["ControlLoop"], object]
 
 
+def first_cycle_at(time_s: float, cycle: int, period_s: float) -> int:
+    """The first cycle from ``cycle`` on whose loop time ``k * period_s`` reaches ``time_s`` [s] (to 1e-9 s, as
+    the loop's inputs compare it): where a timed input (an object's spawn, a goal sent) acts."""
+    k = max(cycle, int((time_s - 1e-9) / period_s) - 1)
+    while k * period_s + 1e-9 < time_s:
+        k += 1
+    return k
+
+
 class ControlLoop:
     """Runs the controllers of ``manager`` against ``hardware`` every ``period_s`` seconds."""
 

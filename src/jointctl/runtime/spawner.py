@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+from jointctl.runtime.loop import first_cycle_at
+
 
 class ObjectSpawner:
     """Spawns each object (an ``ObjectSpec``: ``spawn_at_s`` [s] loop time) at the first cycle whose loop time
@@ -22,8 +24,4 @@ class ObjectSpawner:
         """The first cycle from ``cycle`` on (loop time ``k * period_s``) at which it spawns, or None."""
         if not self.pending:
             return None
-        at = self.pending[0].spawn_at_s
-        k = max(cycle, int((at - 1e-9) / period_s) - 1)
-        while k * period_s + 1e-9 < at:
-            k += 1
-        return k
+        return first_cycle_at(self.pending[0].spawn_at_s, cycle, period_s)
