@@ -24,7 +24,7 @@ import time
 import mujoco
 import numpy as np
 
-from benchmarks.common import Result
+from benchmarks.common import Result, stepping_alone
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import load_scenario
 
@@ -79,20 +79,6 @@ def cartesian_nac(scenario) -> tuple[float, float]:
 
 NAC_SECONDS = 3.0
 NAC_REPEATS = 5
-
-
-def stepping_alone(world, seconds: float) -> float:
-    """Real-time factor of MuJoCo stepping ``world``'s model alone, its controls at the initial pose's gravity
-    load (one run)."""
-    m, d = world.model, world.data
-    steps = round(seconds / world.timestep_s)
-    world.reset()
-    mujoco.mj_forward(m, d)
-    actuated = world.actuator_ids >= 0
-    d.ctrl[world.actuator_ids[actuated]] = d.qfrc_bias[world.dof_adr[actuated]]
-    start = time.perf_counter()
-    mujoco.mj_step(m, d, steps)
-    return seconds / (time.perf_counter() - start)
 
 
 def nac_stack(scenario) -> tuple[float, str]:

@@ -19,7 +19,7 @@ import time
 
 import mujoco
 
-from benchmarks.common import Result, child_peak_memory_mb
+from benchmarks.common import Result, stepping_alone, child_peak_memory_mb
 from jointctl.scenario.session import Session
 from jointctl.scenario.spec import load_scenario
 
@@ -39,19 +39,6 @@ def bare_loop(world) -> float:
     for _ in range(steps):
         ctrl[0] = 400.0 * (-0.5 - qpos[0])
         mujoco.mj_step(m, d)
-    return SIM_SECONDS / (time.perf_counter() - start)
-
-
-def stepping_alone(world) -> float:
-    """Real-time factor of MuJoCo stepping ``world``'s model alone, its controls at the initial pose's gravity
-    load (one run)."""
-    m, d = world.model, world.data
-    steps = round(SIM_SECONDS / world.timestep_s)
-    world.reset()
-    actuated = world.actuator_ids >= 0
-    d.ctrl[world.actuator_ids[actuated]] = d.qfrc_bias[world.dof_adr[actuated]]
-    start = time.perf_counter()
-    mujoco.mj_step(m, d, steps)
     return SIM_SECONDS / (time.perf_counter() - start)
 
 
@@ -83,7 +70,7 @@ def speeds() -> dict[str, float]:
     world = warm.world
     runs: dict[str, list[float]] = {k: [] for k in ("alone", "bare", "stack", "end_to_end", "python")}
     for _ in range(REPEATS):
-        runs["alone"].append(stepping_alone(world))
+        runs["alone"].append(stepping_alone(world, SIM_SECONDS))
         runs["bare"].append(bare_loop(world))
         loop_rtf, end_to_end = whole_stack(scenario)
         runs["stack"].append(loop_rtf)

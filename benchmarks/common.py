@@ -30,3 +30,21 @@ def child_peak_memory_mb(code: str) -> dict:
     )
     out = subprocess.run([sys.executable, "-c", wrapper], capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def stepping_alone(world, seconds: float) -> float:
+    """Real-time factor of MuJoCo stepping ``world``'s model alone for ``seconds`` of simulated time
+    (``mj_step(m, d, nstep)``), its controls held at the initial pose's gravity load (one run)."""
+    import time
+
+    import mujoco
+
+    m, d = world.model, world.data
+    steps = round(seconds / world.timestep_s)
+    world.reset()
+    mujoco.mj_forward(m, d)
+    actuated = world.actuator_ids >= 0
+    d.ctrl[world.actuator_ids[actuated]] = d.qfrc_bias[world.dof_adr[actuated]]
+    start = time.perf_counter()
+    mujoco.mj_step(m, d, steps)
+    return seconds / (time.perf_counter() - start)
